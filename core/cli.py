@@ -1,0 +1,268 @@
+"""The ``frontal3d`` command line.
+
+Every foreseen failure is printed as one line, ``frontal3d: error: <cause>``, with a
+non-zero exit; ``--debug`` shows the traceback of unforeseen ones.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+from pathlib import Path
+from typing import Any, Sequence
+
+from frontal3d import __version__
+from frontal3d.config import find_config_path, load_config
+from frontal3d.errors import ConfigError, Frontal3DError
+from frontal3d.plugins import Plugins
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = _parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    if getattr(args, "verbose", False):
+        logging.getLogger("frontal3d").setLevel(logging.INFO)
+    if not hasattr(args, "run"):
+        parser.print_help()
+        return 1
+    try:
+        return int(args.run(args) or 0)
+    except Frontal3DError as exc:
+        print(f"frontal3d: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        print("frontal3d: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # unforeseen: one line unless --debug
+        if args.debug:
+            raise
+        print(f"frontal3d: internal error: {type(exc).__name__}: {exc} (run with --debug for the traceback)", file=sys.stderr)
+        return 3
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="frontal3d",
+        description="Turn one frontal photo of an object into a textured, watertight 3D mesh by warping a per-family template.",
+        epilog="Run `frontal3d COMMAND --help` for a command's options.",
+    )
+    parser.add_argument("--version", action="version", version=f"frontal3d {__version__}")
+    parser.add_argument("--config", type=Path, help="plugins.toml to use (default: $FRONTAL3D_CONFIG, then ./plugins.toml)")
+    parser.add_argument("--debug", action="store_true", help="show tracebacks of unexpected errors")
+    sub = parser.add_subparsers(title="commands", metavar="COMMAND")
+
+    p = sub.add_parser("reconstruct", help="reconstruct 3D meshes from photos", description="Reconstruct a textured, watertight mesh from each frontal photo. Writes OUTDIR/<image stem>/model.glb, model.obj (+ .mtl, textures), preview.png and report.json.")
+    p.add_argument("images", nargs="+", type=Path, metavar="IMAGE", help="input photo(s): PNG/JPG; an RGBA PNG's alpha is used as the object mask")
+    p.add_argument("--family", default="auto", help="family name (see `frontal3d families`), or auto to let the classifier chain pick (default)")
+    p.add_argument("--subtype", help="skip the subtype classifier and use this subtype's template")
+    p.add_argument("--mask", type=Path, help="object mask (non-zero = object); only with a single IMAGE")
+    p.add_argument("--occluder-mask", type=Path, help="mask of things in front of the object (hands, stands); only with a single IMAGE")
+    p.add_argument("-o", "--out", type=Path, default=Path("frontal3d-out"), help="output folder (default: ./frontal3d-out)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a family setting, e.g. --set working_resolution=400 (value parsed as TOML)")
+    p.add_argument("-v", "--verbose", action="store_true", help="log each stage and write intermediate maps to OUTDIR/<stem>/debug/")
+    p.set_defaults(run=_cmd_reconstruct)
+
+    p = sub.add_parser("families", help="list installed families, subtypes, views and regions")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(run=_cmd_families)
+
+    p = sub.add_parser("plugins", help="list installed plugins and the hooks they implement")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(run=_cmd_plugins)
+
+    p = sub.add_parser("new-family", help="scaffold a third-party family plugin package", description="Create a ready-to-install package for a new object family: pyproject with the entry point, hook implementations, family.yaml and a test. Then `pip install -e DIR` and it shows up in `frontal3d families`.")
+    p.add_argument("name", help="family name, e.g. chair (lower case, letters, digits and _)")
+    p.add_argument("--template", type=Path, help="a mesh (GLB/OBJ/PLY/STL) in the canonical frame to ship as the template")
+    p.add_argument("--view", choices=["front", "side", "top"], default="front", help="which view of the object the photos show (default: front)")
+    p.add_argument("-o", "--out", type=Path, help="folder to create (default: ./frontal3d-<name>)")
+    p.set_defaults(run=_cmd_new_family)
+
+    p = sub.add_parser("template", help="build or picture templates")
+    tsub = p.add_subparsers(title="template commands", metavar="ACTION")
+    t = tsub.add_parser("build", help="check a user mesh, turn it into a template, render and cache it")
+    t.add_argument("mesh", type=Path, help="mesh file (GLB/OBJ/PLY/STL) in the family's canonical frame")
+    t.add_argument("--family", required=True)
+    t.add_argument("--subtype", required=True)
+    t.add_argument("--regions", type=Path, help="YAML/JSON mapping of the mesh's group/material/colour names to region names")
+    t.add_argument("-o", "--out", type=Path, help="also write a contact sheet PNG here")
+    t.set_defaults(run=_cmd_template_build)
+    t = tsub.add_parser("show", help="write a contact sheet of a template: views, depth, normals, regions, landmarks")
+    t.add_argument("which", metavar="FAMILY/SUBTYPE")
+    t.add_argument("-o", "--out", type=Path, required=True, help="PNG to write")
+    t.set_defaults(run=_cmd_template_show)
+
+    p = sub.add_parser("evaluate", help="score reconstructions against ground-truth meshes (the paper's protocol)", description="For each ground-truth mesh (canonical frame), reconstruct from its frontal render and compare: voxel IoU (128^3, ICP-aligned), Chamfer-L1 and F-score@0.1. Writes metrics.csv, summary.csv and boxplots.png.")
+    p.add_argument("--family", required=True)
+    p.add_argument("--meshes", type=Path, required=True, help="folder of ground-truth *.glb in the family's canonical frame")
+    p.add_argument("--renders", type=Path, help="folder of <id>.png/<id>_mask.png/<id>.json frontal renders (default: render them)")
+    p.add_argument("--method", choices=["template", "slab"], default="template", help="template (the pipeline) or slab (the plain extrusion baseline)")
+    p.add_argument("--limit", type=int, help="only the first N meshes")
+    p.add_argument("-o", "--out", type=Path, default=Path("frontal3d-eval"), help="output folder")
+    p.set_defaults(run=_cmd_evaluate)
+
+    p = sub.add_parser("bench", help="time each stage and measure peak memory", description="Reconstruct an image several times and print per-stage seconds and peak memory.")
+    p.add_argument("image", type=Path, nargs="?", help="input photo (default: the bundled example)")
+    p.add_argument("--family", default="auto")
+    p.add_argument("--mask", type=Path)
+    p.add_argument("--repeat", type=int, default=3)
+    p.add_argument("--json", action="store_true")
+    p.set_defaults(run=_cmd_bench)
+    return parser
+
+
+def _plugins(args: argparse.Namespace) -> Plugins:
+    plugins = Plugins(load_config(find_config_path(args.config)))
+    for info in plugins.broken:
+        print(f"frontal3d: warning: plugin {info.name} not loaded: {info.error}", file=sys.stderr)
+    return plugins
+
+
+def _parse_sets(pairs: list[str]) -> dict[str, Any]:
+    import tomllib
+
+    settings = {}
+    for pair in pairs:
+        key, sep, value = pair.partition("=")
+        if not sep or not key:
+            raise ConfigError(f"--set {pair!r}: expected KEY=VALUE")
+        try:
+            settings[key] = tomllib.loads(f"v = {value}")["v"]
+        except tomllib.TOMLDecodeError:
+            settings[key] = value
+    return settings
+
+
+def _cmd_reconstruct(args: argparse.Namespace) -> int:
+    from frontal3d.pipeline import reconstruct
+    from frontal3d.progress import StageProgress
+
+    if len(args.images) > 1 and (args.mask or args.occluder_mask):
+        raise ConfigError("--mask and --occluder-mask need a single IMAGE")
+    plugins = _plugins(args)
+    settings = _parse_sets(args.set)
+    failures = 0
+    with StageProgress(len(args.images)) as progress:
+        for image in args.images:
+            progress.start(image.name)
+            try:
+                result = reconstruct(
+                    image, args.family, mask=args.mask, occluder_mask=args.occluder_mask,
+                    subtype=args.subtype, plugins=plugins, progress=progress.stage, **settings,
+                )
+                paths = result.save(args.out / image.stem, debug=args.verbose)
+            except Frontal3DError as exc:
+                if len(args.images) == 1:
+                    raise
+                failures += 1
+                progress.write(f"frontal3d: error: {image}: {exc}")
+                continue
+            report = result.report
+            progress.write(f"{image}: {report['family']}/{report['subtype']} -> {paths['glb']} ({report['mesh']['faces']} faces, {report['seconds_total']:.1f} s)")
+            for warning in report["warnings"]:
+                progress.write(f"  warning: {warning}")
+    return 2 if failures else 0
+
+
+def _cmd_families(args: argparse.Namespace) -> int:
+    from frontal3d.catalogue import family_catalogue
+
+    plugins = _plugins(args)
+    catalogue = family_catalogue(plugins)
+    if args.json:
+        print(json.dumps(catalogue, indent=2))
+        return 0
+    for fam in catalogue:
+        print(f"{fam['name']} ({fam['canonical_view']} view): {fam['description']}")
+        for sub in fam["subtypes"]:
+            regions = ", ".join(fam["regions"][sub])
+            landmarks = ", ".join(fam.get("landmarks", {}).get(sub, []))
+            print(f"  {sub}: regions {regions}" + (f"; landmarks {landmarks}" if landmarks else ""))
+    return 0
+
+
+def _cmd_plugins(args: argparse.Namespace) -> int:
+    plugins = _plugins(args)
+    infos = [info.to_dict() for info in plugins.infos]
+    if args.json:
+        print(json.dumps(infos, indent=2))
+        return 0
+    for info in infos:
+        version = f" {info['version']}" if info["version"] else ""
+        print(f"{info['name']}{version} [{info['source']}]")
+        if info["error"]:
+            print(f"  ERROR: {info['error']}")
+        else:
+            print(f"  hooks: {', '.join(info['hooks'])}")
+    return 0
+
+
+def _cmd_new_family(args: argparse.Namespace) -> int:
+    from frontal3d.scaffold import scaffold_family
+
+    out = scaffold_family(args.name, args.out or Path(f"frontal3d-{args.name}"), view=args.view, template_mesh=args.template)
+    print(f"created {out}")
+    print(f"next: pip install -e {out} && frontal3d families")
+    return 0
+
+
+def _cmd_template_build(args: argparse.Namespace) -> int:
+    import yaml
+
+    from frontal3d.render import load_or_render
+    from frontal3d.template_tools import contact_sheet, template_from_mesh
+
+    plugins = _plugins(args)
+    family = plugins.family(args.family)
+    regions = yaml.safe_load(args.regions.read_text()) if args.regions else None
+    template, warnings = template_from_mesh(args.mesh, family, args.subtype, regions)
+    for warning in warnings:
+        print(f"warning: {warning}", file=sys.stderr)
+    settings = plugins.settings(family.name)
+    renders = load_or_render(template, int(settings["template_resolution"]), cache_dir=plugins.config.cache_dir)
+    print(f"template {family.name}/{args.subtype}: {len(template.mesh.faces)} faces, regions {', '.join(template.region_names)}; renders cached ({renders.resolution}px)")
+    print(f"use it with: [families.{family.name}] template_path = \"{args.mesh.resolve()}\" in plugins.toml")
+    if args.out:
+        contact_sheet(template, renders, args.out)
+        print(f"wrote {args.out}")
+    return 0
+
+
+def _cmd_template_show(args: argparse.Namespace) -> int:
+    from frontal3d.render import load_or_render
+    from frontal3d.template_tools import contact_sheet
+
+    plugins = _plugins(args)
+    family_name, _, subtype = args.which.partition("/")
+    family = plugins.family(family_name)
+    settings = plugins.settings(family.name)
+    template = plugins.hook.frontal3d_template(family=family, subtype=subtype or family.subtypes[0], settings=settings)
+    renders = load_or_render(template, int(settings["template_resolution"]), cache_dir=plugins.config.cache_dir)
+    contact_sheet(template, renders, args.out)
+    print(f"wrote {args.out}")
+    return 0
+
+
+def _cmd_evaluate(args: argparse.Namespace) -> int:
+    from frontal3d.evaluate import pipeline_reconstructor, print_summary, run_evaluation, slab_reconstructor
+
+    plugins = _plugins(args)
+    plugins.family(args.family)
+    reconstructor = slab_reconstructor() if args.method == "slab" else pipeline_reconstructor(plugins, args.family)
+    rows = run_evaluation(args.family, args.meshes, args.renders, reconstructor, args.out, limit=args.limit)
+    print_summary(rows)
+    print(f"wrote {args.out}/metrics.csv, summary.csv, boxplots.png")
+    return 0
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from frontal3d.bench import run_bench
+
+    plugins = _plugins(args)
+    return run_bench(plugins, args.image, args.family, args.mask, args.repeat, as_json=args.json)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

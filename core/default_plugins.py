@@ -1,0 +1,55 @@
+"""The core's own hook implementations: the defaults every family gets.
+
+Registered first, so any installed plugin's implementation of a first-result hook is
+asked before these (pluggy calls the last registered first); the defaults marked
+``trylast`` are the fallbacks at the end of each chain.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable
+
+import numpy as np
+
+from frontal3d import hookimpl
+from frontal3d.back_rules import BUILTIN_BACK_RULES
+from frontal3d.family import Family
+from frontal3d.stages import classify, mesh, regions, segment
+
+
+@hookimpl(tryfirst=True)
+def frontal3d_segment(image: np.ndarray, family: Family, settings: dict[str, Any], hints: dict[str, Any]) -> np.ndarray | None:
+    """The user's mask first, then the image's alpha channel."""
+    if hints.get("mask") is not None:
+        return hints["mask"]
+    return segment.mask_from_alpha(image)
+
+
+@hookimpl(trylast=True, specname="frontal3d_segment")
+def classical_segmenter(image: np.ndarray, family: Family, settings: dict[str, Any], hints: dict[str, Any]) -> np.ndarray | None:
+    """The training-free fallback: GrabCut from a border-colour model."""
+    return segment.grabcut_segment(image[..., :3], shape_prior=hints.get("shape_prior"))
+
+
+@hookimpl
+def frontal3d_classifiers(family: Family) -> list[classify.Classifier]:
+    return [classify.FrontalGate(), classify.SubtypeClassifier()]
+
+
+@hookimpl(trylast=True)
+def frontal3d_segment_regions(image: np.ndarray, object_mask: np.ndarray, transferred_regions: np.ndarray, family: Family, subtype: str, settings: dict[str, Any]) -> np.ndarray | None:
+    """Transfer the aligned template's regions, refined by colour and a graph cut."""
+    return regions.refine_regions(image, object_mask, transferred_regions, len(family.regions[subtype]))
+
+
+@hookimpl
+def frontal3d_back_texture_rules() -> dict[str, Callable[..., np.ndarray]]:
+    return dict(BUILTIN_BACK_RULES)
+
+
+@hookimpl
+def frontal3d_symmetry_rules() -> dict[str, Callable[..., tuple[np.ndarray, np.ndarray]]]:
+    return {
+        "none": lambda front_z, back_z, mask, region_map, params: (front_z, back_z),
+        "mirror_z": lambda front_z, back_z, mask, region_map, params: mesh.apply_symmetry(front_z, back_z, mask, "mirror_z"),
+    }

@@ -1,0 +1,73 @@
+"""Reading input images and masks, with errors that name the file and the cause."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from frontal3d.errors import InputError
+
+
+def read_image(path: Path) -> np.ndarray:
+    """Read an image as RGB or RGBA uint8 (alpha kept: it may be the object's mask)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"cannot read image {path}: no such file")
+    data = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if data is None or data.size == 0:
+        raise InputError(f"cannot read image {path}: not an image or unsupported format")
+    return as_rgb(data_from_cv2(data), str(path))
+
+
+def data_from_cv2(data: np.ndarray) -> np.ndarray:
+    """OpenCV's BGR(A) -> RGB(A), 16-bit -> 8-bit."""
+    if data.dtype == np.uint16:
+        data = (data / 257).astype(np.uint8)
+    if data.ndim == 3 and data.shape[2] == 3:
+        return cv2.cvtColor(data, cv2.COLOR_BGR2RGB)
+    if data.ndim == 3 and data.shape[2] == 4:
+        return cv2.cvtColor(data, cv2.COLOR_BGRA2RGBA)
+    return data
+
+
+def as_rgb(image: np.ndarray, name: str = "image") -> np.ndarray:
+    """Validate an in-memory image and give it 3 or 4 uint8 channels."""
+    image = np.asarray(image)
+    if image.ndim == 2:
+        image = np.repeat(image[:, :, None], 3, axis=2)
+    if image.ndim != 3 or image.shape[2] not in (3, 4):
+        raise InputError(f"{name}: expected an H x W x 3 or 4 image, got shape {image.shape}")
+    if image.shape[0] < 16 or image.shape[1] < 16:
+        raise InputError(f"{name}: image is too small ({image.shape[1]}x{image.shape[0]} pixels)")
+    if image.dtype != np.uint8:
+        if np.issubdtype(image.dtype, np.floating) and image.max() <= 1.0:
+            image = image * 255.0
+        image = np.clip(image, 0, 255).astype(np.uint8)
+    if int(image[..., :3].max()) == int(image[..., :3].min()) and (image.shape[2] == 3 or image[..., 3].min() == image[..., 3].max()):
+        raise InputError(f"{name}: image is empty (every pixel has the same value)")
+    return image
+
+
+def read_mask(path: Path, shape: tuple[int, int]) -> np.ndarray:
+    """Read a user's mask (non-zero = object) and fit it to an image of ``shape``.
+
+    A mask of another size is resized only when its aspect ratio matches the image's
+    (a different aspect ratio means it belongs to another image).
+    """
+    path = Path(path)
+    data = cv2.imread(str(path), cv2.IMREAD_UNCHANGED) if path.is_file() else None
+    if data is None:
+        raise InputError(f"cannot read mask {path}: no such file or not an image")
+    if data.ndim == 3:
+        data = data[..., 3] if data.shape[2] == 4 else data.max(axis=2)
+    h, w = shape
+    if data.shape != (h, w):
+        if abs(data.shape[1] / data.shape[0] - w / h) > 0.01:
+            raise InputError(f"mask {path} is {data.shape[1]}x{data.shape[0]} but the image is {w}x{h}")
+        data = cv2.resize(data, (w, h), interpolation=cv2.INTER_NEAREST)
+    mask = data > (data.max() / 2 if data.max() > 1 else 0)
+    if not mask.any():
+        raise InputError(f"mask {path} is empty")
+    return mask

@@ -1,0 +1,387 @@
+"""Runs the stages in order and owns the report.
+
+One reconstruction is a straight line of stages (docs/architecture.md): each stage
+is a function in ``frontal3d.stages``, takes plain data and returns plain data; this
+module only sequences them, asks the plugins where a hook decides, times every
+stage and collects the decisions and warnings into ``report.json``.
+"""
+
+from __future__ import annotations
+
+import logging
+import resource
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterator
+
+import cv2
+import numpy as np
+
+from frontal3d.errors import InputError, NoObjectError, NotFrontalError, TemplateError, UnknownFamilyError
+from frontal3d.family import Family, Template
+from frontal3d.imageio import as_rgb, read_image, read_mask
+from frontal3d.plugins import Plugins
+from frontal3d.render import TemplateRenders, load_or_render
+from frontal3d.stages import align, boundary, classify, mesh, occlusion, segment, texture, warp
+from frontal3d.stages.export import export_all
+
+log = logging.getLogger("frontal3d")
+
+#: Margin, as a fraction of the object's bounding box, kept around the crop the
+#: shape stages work on (room for the template to overhang before warping).
+CROP_MARGIN = 0.08
+
+
+@dataclass
+class Report:
+    """What happened, for report.json: decisions, per-stage seconds, warnings."""
+
+    data: dict[str, Any] = field(default_factory=lambda: {"stages": {}, "peak_memory_mb": {}, "warnings": []})
+
+    @contextmanager
+    def stage(self, name: str, progress: Callable[[str], None] | None = None) -> Iterator[None]:
+        """Time a stage and note the process's peak memory after it."""
+        if progress:
+            progress(name)
+        log.info("stage %s", name)
+        start = time.perf_counter()
+        yield
+        self.data["stages"][name] = round(time.perf_counter() - start, 4)
+        self.data["peak_memory_mb"][name] = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
+
+    def warn(self, message: str) -> None:
+        log.warning(message)
+        self.data["warnings"].append(message)
+
+
+@dataclass
+class Reconstruction:
+    """The result of one reconstruction: the textured mesh, its maps and the report."""
+
+    textured: texture.TexturedMesh
+    landmarks: dict[str, np.ndarray]
+    report: dict[str, Any]
+    maps: dict[str, np.ndarray]
+
+    @property
+    def mesh(self):
+        """The watertight geometry (the textured mesh splits vertices along UV seams)."""
+        return self.textured.watertight_mesh
+
+    def save(self, out_dir: Path, debug: bool = False) -> dict[str, Path]:
+        """Write model.glb, model.obj/.mtl, textures, preview.png and report.json into ``out_dir``."""
+        debug_maps = self.maps if debug else {}
+        return export_all(Path(out_dir), self.textured, self.landmarks, self.report, debug_maps=debug_maps)
+
+
+@dataclass
+class _Crop:
+    """The object's crop of the full image and its working-resolution copy."""
+
+    x0: int
+    y0: int
+    width: int
+    height: int
+    scale: float  # working pixels per full-resolution pixel
+
+    @property
+    def working_shape(self) -> tuple[int, int]:
+        return max(1, round(self.height * self.scale)), max(1, round(self.width * self.scale))
+
+
+def reconstruct(
+    image: np.ndarray | str | Path,
+    family: str | None = None,
+    *,
+    mask: np.ndarray | str | Path | None = None,
+    occluder_mask: np.ndarray | str | Path | None = None,
+    subtype: str | None = None,
+    plugins: Plugins | None = None,
+    progress: Callable[[str], None] | None = None,
+    **settings: Any,
+) -> Reconstruction:
+    """Reconstruct a textured, watertight mesh from one frontal photo.
+
+    ``family`` is a family name or None/"auto" to let the classifier chain pick;
+    ``mask`` and ``occluder_mask`` are optional user masks (arrays or paths);
+    ``subtype`` skips the subtype classifier; ``settings`` override the family's
+    settings (plugins.toml keys). Raises a :class:`frontal3d.errors.Frontal3DError`
+    with a one-line reason on bad input or a rejected view.
+    """
+    plugins = plugins or Plugins()
+    report = Report()
+    name = str(image) if isinstance(image, (str, Path)) else "image"
+    report.data["input"] = name
+    with report.stage("load", progress):
+        rgb = read_image(Path(image)) if isinstance(image, (str, Path)) else as_rgb(image)
+        report.data["image_size"] = [int(rgb.shape[1]), int(rgb.shape[0])]
+        user_mask = _load_optional_mask(mask, rgb.shape[:2], "mask")
+        user_occluders = _load_optional_mask(occluder_mask, rgb.shape[:2], "occluder mask")
+
+    candidates = [plugins.family(family)] if family not in (None, "auto") else list(plugins.families.values())
+    if not candidates:
+        raise UnknownFamilyError("no family plugin is installed (see `frontal3d plugins`)")
+    chosen = None
+    rejections: list[str] = []
+    for fam in candidates:
+        fam_settings = plugins.settings(fam.name, settings)
+        with report.stage(f"segment[{fam.name}]" if len(candidates) > 1 else "segment", progress):
+            object_mask = _segment(plugins, rgb, fam, fam_settings, user_mask, report)
+        with report.stage(f"classify[{fam.name}]" if len(candidates) > 1 else "classify", progress):
+            try:
+                decisions, picked_subtype, renders_by_subtype = _classify(plugins, rgb, object_mask, fam, fam_settings, subtype)
+            except NotFrontalError as exc:
+                if len(candidates) == 1:
+                    raise
+                rejections.append(f"{fam.name}: {exc}")
+                continue
+        score = max((d.confidence for d in decisions if d.name == "frontal"), default=0.0)
+        if chosen is None or score > chosen[0]:
+            chosen = (score, fam, fam_settings, object_mask, decisions, picked_subtype, renders_by_subtype)
+    if chosen is None:
+        raise NotFrontalError("no installed family accepts this image: " + "; ".join(rejections))
+    _, fam, fam_settings, object_mask, decisions, picked_subtype, renders_by_subtype = chosen
+    report.data["family"] = fam.name
+    report.data["subtype"] = picked_subtype
+    report.data["decisions"] = [d.to_dict() for d in decisions]
+    return _reconstruct_shape_and_texture(plugins, rgb, object_mask, user_occluders, fam, picked_subtype, fam_settings, renders_by_subtype[picked_subtype], report, progress)
+
+
+def _reconstruct_shape_and_texture(
+    plugins: Plugins,
+    rgb: np.ndarray,
+    object_mask: np.ndarray,
+    user_occluders: np.ndarray | None,
+    fam: Family,
+    subtype: str,
+    settings: dict[str, Any],
+    renders: TemplateRenders,
+    report: Report,
+    progress: Callable[[str], None] | None,
+) -> Reconstruction:
+    maps: dict[str, np.ndarray] = {}
+    crop = _crop_for(object_mask, int(settings["working_resolution"]))
+    work_rgb = _to_working(rgb[..., :3], crop, cv2.INTER_AREA)
+    work_mask = _to_working(object_mask.astype(np.uint8), crop, cv2.INTER_NEAREST) > 0
+    report.data["working_size"] = [int(work_mask.shape[1]), int(work_mask.shape[0])]
+
+    with report.stage("align", progress):
+        work_grey = cv2.cvtColor(work_rgb, cv2.COLOR_RGB2GRAY)
+        template_grey = _shade(renders.front_normals, renders.mask)
+        similarity, diagnostics = align.align_template(
+            renders.mask, work_mask, template_grey, work_grey, max_angle=np.deg2rad(settings["max_angle_deg"])
+        )
+        report.data["alignment"] = {**similarity.to_dict(), **{k: _plain(v) for k, v in diagnostics.items()}}
+        aligned_template_mask = align.warp_mask(renders.mask, similarity, work_mask.shape)
+        transferred = align.warp_labels(renders.front_regions, similarity, work_mask.shape)
+        maps["aligned_template_mask"] = aligned_template_mask
+
+    with report.stage("occlusion", progress):
+        occluders = occlusion.find_occluders(plugins, rgb, object_mask, settings, user_occluders)
+        work_occluders = _to_working(occluders.astype(np.uint8), crop, cv2.INTER_NEAREST) > 0 if occluders is not None else np.zeros_like(work_mask)
+        rebuilt = occlusion.rebuild_silhouette(work_mask, work_occluders, aligned_template_mask)
+        work_mask, occluded = rebuilt.mask, rebuilt.occluded
+        report.data["occlusion"] = rebuilt.summary()
+        maps["occlusion_mask"] = occluded
+
+    with report.stage("regions", progress):
+        transferred[~work_mask] = -1
+        regions = plugins.hook.frontal3d_segment_regions(
+            image=work_rgb, object_mask=work_mask, transferred_regions=transferred, family=fam, subtype=subtype, settings=settings
+        )
+        if regions is None:
+            regions = transferred
+        regions = occlusion.rebuild_regions(regions, work_mask, occluded, len(renders.region_names))
+        maps["regions"] = regions
+
+    with report.stage("boundary", progress):
+        k = int(settings["boundary_k"]) or boundary.default_k(max(work_mask.shape))
+        input_contour = boundary.trace_contour(work_mask)
+        template_contour = similarity.apply(boundary.trace_contour(renders.mask))
+        omega = boundary.match_contours(input_contour, template_contour, k)
+        template_regions_img = align.warp_labels(renders.front_regions, similarity, work_mask.shape)
+        region_k = int(settings["region_k"])
+        omega = boundary.match_regions(regions, template_regions_img, input_contour, template_contour, omega, K=region_k)
+        inner_in, inner_tpl = boundary.region_pivots(regions, template_regions_img, K=region_k)
+        out_pivots = np.concatenate([input_contour, inner_in])
+        src_pivots = np.concatenate([template_contour[omega], inner_tpl])
+        report.data["boundary"] = {"k": k, "contour_points": int(len(input_contour)), "region_pivots": int(len(inner_in))}
+
+    with report.stage("warp", progress):
+        template_maps = {
+            "mask": renders.mask,
+            "front_depth": renders.front_depth,
+            "back_depth": renders.back_depth,
+            "front_normals": renders.front_normals,
+            "back_normals": renders.back_normals,
+            "front_regions": renders.front_regions,
+            "back_regions": renders.back_regions,
+        }
+        warped = warp.warp_template_to_silhouette(work_mask, template_maps, similarity.matrix, out_pivots, src_pivots)
+
+    with report.stage("mesh", progress):
+        pixel_size = renders.pixel_size / similarity.scale
+        relative_scale = warped.local_scale / similarity.scale
+        front_z = warped.front_depth * relative_scale
+        back_z = warped.back_depth * relative_scale
+        rule = _rule(plugins.hook.frontal3d_symmetry_rules(), settings["symmetry"], "symmetry")
+        front_z, back_z = rule(front_z, back_z, work_mask, regions, {})
+        result = mesh.build_mesh(
+            work_mask, front_z, back_z, pixel_size,
+            smooth_iterations=int(settings["smooth_iterations"]),
+            max_vertices=int(settings["max_vertices"]) or None,
+        )
+        if result.dropped_pixels:
+            report.warn(f"{result.dropped_pixels} one-pixel pinch or isolated pixel(s) dropped from the silhouette to keep the mesh closed")
+        landmarks = _warp_landmarks(renders, similarity, warped, relative_scale, pixel_size)
+        maps.update(front_depth=front_z, back_depth=back_z)
+
+    with report.stage("texture", progress):
+        full_crop = rgb[crop.y0 : crop.y0 + crop.height, crop.x0 : crop.x0 + crop.width, :3]
+        full_mask = cv2.resize(work_mask.astype(np.uint8), (crop.width, crop.height), interpolation=cv2.INTER_NEAREST) > 0
+        full_regions = cv2.resize(regions.astype(np.int16), (crop.width, crop.height), interpolation=cv2.INTER_NEAREST).astype(np.int32)
+        full_occluded = cv2.resize(occluded.astype(np.uint8), (crop.width, crop.height), interpolation=cv2.INTER_NEAREST) > 0
+        back_rules = {}
+        for rules in plugins.hook.frontal3d_back_texture_rules():
+            back_rules.update(rules)
+        back_rule = _rule([back_rules], settings["back_texture"], "back_texture")
+        textured = texture.build_textured_mesh(
+            result, full_crop, full_mask, full_regions, full_occluded, renders.region_names,
+            back_rule, dict(settings["back_texture_params"]), working_to_full=1.0 / crop.scale,
+            bump_strength=float(settings["bump_strength"]),
+        )
+
+    centre = textured.watertight_mesh.bounds.mean(axis=0)
+    textured.mesh.apply_translation(-centre)
+    if textured.watertight_mesh is not textured.mesh:
+        textured.watertight_mesh.apply_translation(-centre)
+    landmarks = {k: v - centre for k, v in landmarks.items()}
+    report.data["mesh"] = {
+        "vertices": int(len(textured.watertight_mesh.vertices)),
+        "faces": int(len(textured.watertight_mesh.faces)),
+        "watertight": bool(textured.watertight_mesh.is_watertight),
+        "size_m": [round(float(v), 4) for v in textured.watertight_mesh.extents],
+    }
+    report.data["seconds_total"] = round(sum(report.data["stages"].values()), 3)
+    maps["object_mask"] = work_mask
+    return Reconstruction(textured=textured, landmarks=landmarks, report=report.data, maps=maps)
+
+
+def _segment(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dict[str, Any], user_mask: np.ndarray | None, report: Report) -> np.ndarray:
+    found = plugins.hook.frontal3d_segment(image=rgb, family=fam, settings=settings, hints={"mask": user_mask})
+    if user_mask is not None:
+        report.data["segmenter"] = "user mask"
+    elif rgb.shape[2] == 4 and segment.mask_from_alpha(rgb) is not None:
+        report.data["segmenter"] = "alpha channel"
+    else:
+        report.data["segmenter"] = "segmenter chain"
+    if found is None or not np.asarray(found).any():
+        raise NoObjectError(f"no {fam.name} found in the image (give a mask with --mask if the object is there)")
+    objects = segment.split_objects(np.asarray(found, dtype=bool))
+    if not objects:
+        raise NoObjectError(f"no {fam.name} found in the image: the segmented area is too small")
+    if len(objects) > 1:
+        report.warn(f"{len(objects)} objects found; reconstructing the largest ({int(objects[0].sum())} pixels)")
+    chosen = objects[0]
+    if _touches_border(chosen):
+        report.warn("the object touches the image border: parts of it may be cut off")
+    return chosen
+
+
+def _classify(plugins: Plugins, rgb: np.ndarray, object_mask: np.ndarray, fam: Family, settings: dict[str, Any], forced_subtype: str | None):
+    if forced_subtype is not None and forced_subtype not in fam.subtypes:
+        raise UnknownFamilyError(f"family {fam.name!r} has no subtype {forced_subtype!r} (subtypes: {', '.join(fam.subtypes)})")
+    subtypes = [forced_subtype] if forced_subtype else list(fam.subtypes)
+    renders_by_subtype = {s: _renders(plugins, fam, s, settings) for s in subtypes}
+    context = classify.ClassifierContext(
+        image=rgb, object_mask=object_mask, family=fam, renders=renders_by_subtype, settings=settings
+    )
+    classifiers = sorted((c for group in plugins.hook.frontal3d_classifiers(family=fam) for c in group), key=lambda c: c.order)
+    decisions = []
+    picked = forced_subtype
+    for classifier in classifiers:
+        if classifier.name == "subtype" and forced_subtype:
+            continue
+        decision = classifier.classify(context)
+        decisions.append(decision)
+        if not decision.accepted:
+            raise NotFrontalError(decision.reason)
+        if decision.name == "subtype":
+            picked = decision.label
+    if picked is None:
+        picked = fam.subtypes[0]
+    return decisions, picked, renders_by_subtype
+
+
+def _renders(plugins: Plugins, fam: Family, subtype: str, settings: dict[str, Any]) -> TemplateRenders:
+    template: Template | None = plugins.hook.frontal3d_template(family=fam, subtype=subtype, settings=settings)
+    if template is None:
+        raise TemplateError(f"no plugin provides a template for {fam.name}/{subtype}")
+    return load_or_render(template, int(settings["template_resolution"]), cache_dir=plugins.config.cache_dir)
+
+
+def _load_optional_mask(mask: np.ndarray | str | Path | None, shape: tuple[int, int], what: str) -> np.ndarray | None:
+    if mask is None:
+        return None
+    if isinstance(mask, (str, Path)):
+        return read_mask(Path(mask), shape)
+    mask = np.asarray(mask).astype(bool)
+    if mask.shape != shape:
+        raise InputError(f"{what} is {mask.shape[1]}x{mask.shape[0]} but the image is {shape[1]}x{shape[0]}")
+    return mask
+
+
+def _crop_for(mask: np.ndarray, working_resolution: int) -> _Crop:
+    ys, xs = np.nonzero(mask)
+    y0, y1, x0, x1 = ys.min(), ys.max() + 1, xs.min(), xs.max() + 1
+    margin = int(np.ceil(CROP_MARGIN * max(y1 - y0, x1 - x0)))
+    y0, x0 = max(0, y0 - margin), max(0, x0 - margin)
+    y1, x1 = min(mask.shape[0], y1 + margin), min(mask.shape[1], x1 + margin)
+    scale = working_resolution / max(y1 - y0, x1 - x0)
+    return _Crop(x0=int(x0), y0=int(y0), width=int(x1 - x0), height=int(y1 - y0), scale=float(scale))
+
+
+def _to_working(array: np.ndarray, crop: _Crop, interpolation: int) -> np.ndarray:
+    cropped = array[crop.y0 : crop.y0 + crop.height, crop.x0 : crop.x0 + crop.width]
+    h, w = crop.working_shape
+    return cv2.resize(cropped, (w, h), interpolation=interpolation)
+
+
+def _shade(normals: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """A grey rendering of the template (light from the camera) for mutual information."""
+    grey = np.clip(normals[..., 2], 0.0, 1.0) * 200.0 + 40.0
+    return np.where(mask, grey, 0).astype(np.uint8)
+
+
+def _warp_landmarks(renders: TemplateRenders, similarity: align.Similarity, warped: warp.WarpResult, relative_scale: np.ndarray, pixel_size: float) -> dict[str, np.ndarray]:
+    """Send each template landmark through the warp: the output pixel whose source is nearest."""
+    landmarks = {}
+    inside = np.argwhere(warped.mask)
+    sources = warped.source_coords[warped.mask]
+    for name, position in renders.landmarks.items():
+        px = renders.world_to_pixel(position[:2])
+        row, col = inside[np.argmin(np.sum((sources - px) ** 2, axis=1))]
+        z = float(position[2]) * float(relative_scale[row, col])
+        landmarks[name] = np.array([(col + 0.5) * pixel_size, -(row + 0.5) * pixel_size, z])
+    return landmarks
+
+
+def _rule(registries: list[dict[str, Callable]], name: str, setting: str) -> Callable:
+    merged: dict[str, Callable] = {}
+    for registry in registries:
+        merged.update(registry)
+    if name not in merged:
+        raise UnknownFamilyError(f"unknown {setting} rule {name!r} (known: {', '.join(sorted(merged))})")
+    return merged[name]
+
+
+def _touches_border(mask: np.ndarray) -> bool:
+    return bool(mask[0].any() or mask[-1].any() or mask[:, 0].any() or mask[:, -1].any())
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, np.generic):
+        return value.item()
+    return value

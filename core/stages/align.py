@@ -1,0 +1,304 @@
+"""Alignment of the template renders to the object mask (paper, section 3.2.1).
+
+The template is scaled, rotated and shifted onto the object's silhouette: a coarse
+sweep over rotation (and a few scales) keeps the candidate with the best mask
+overlap, then a gradient-free search refines all four parameters by maximising the
+mutual information between the warped template and the object (masks, plus grey
+images when given), as the paper's "rigid registration based on mutual information".
+No mirror candidates are tried: templates are symmetric about their vertical axis.
+
+Everything here is in pixel coordinates: (x, y) = (col, row), y pointing down,
+pixel centres at integers (the same convention as ``cv2.warpAffine``).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass
+
+import cv2
+import numpy as np
+from scipy.optimize import minimize
+
+from frontal3d.errors import InputError
+
+#: Grid size (pixels across) of the coarse sweep and first MI refinement; the final
+#: refinement runs at the object's own resolution, up to MAX_FINE_GRID.
+COARSE_GRID = 64
+MAX_FINE_GRID = 256
+#: Rotation step of the coarse sweep.
+ANGLE_STEP = np.deg2rad(6.0)
+#: Scales tried around the area-ratio estimate in the coarse sweep.
+SCALE_FACTORS = (0.85, 1.0, 1.15)
+#: How many of the best coarse candidates get an MI refinement.
+REFINED_CANDIDATES = 3
+
+
+@dataclass(frozen=True)
+class Similarity:
+    """Maps TEMPLATE pixel coordinates to IMAGE pixel coordinates: p' = scale * R(angle) p + t.
+
+    ``R(angle) = [[cos, -sin], [sin, cos]]`` acts on (x, y) with y pointing down, so a
+    positive angle turns the template clockwise as seen on screen.
+    """
+
+    scale: float
+    angle: float
+    tx: float
+    ty: float
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """The 2x3 float64 matrix ``[s R | t]``, ready for ``cv2.warpAffine``."""
+        c, s = np.cos(self.angle) * self.scale, np.sin(self.angle) * self.scale
+        return np.array([[c, -s, self.tx], [s, c, self.ty]], dtype=np.float64)
+
+    def apply(self, points: np.ndarray) -> np.ndarray:
+        """Map (N, 2) template points (x, y) to image points."""
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        m = self.matrix
+        return points @ m[:, :2].T + m[:, 2]
+
+    def inverse(self) -> Similarity:
+        """The image -> template similarity."""
+        inv_scale = 1.0 / self.scale
+        c, s = np.cos(-self.angle) * inv_scale, np.sin(-self.angle) * inv_scale
+        tx = -(c * self.tx - s * self.ty)
+        ty = -(s * self.tx + c * self.ty)
+        return Similarity(inv_scale, -self.angle, float(tx), float(ty))
+
+    def compose(self, first: Similarity) -> Similarity:
+        """``self after first``: the similarity applying ``first``, then ``self``."""
+        t = self.apply(np.array([[first.tx, first.ty]]))[0]
+        angle = float(np.angle(np.exp(1j * (self.angle + first.angle))))
+        return Similarity(self.scale * first.scale, angle, float(t[0]), float(t[1]))
+
+    def to_dict(self) -> dict[str, float]:
+        return {k: float(v) for k, v in asdict(self).items()}
+
+    @staticmethod
+    def about(template_point: np.ndarray, image_point: np.ndarray, scale: float, angle: float) -> Similarity:
+        """The similarity with this scale and angle that sends ``template_point`` to ``image_point``."""
+        rotated = Similarity(scale, angle, 0.0, 0.0).apply(np.asarray(template_point))[0]
+        t = np.asarray(image_point, dtype=np.float64) - rotated
+        return Similarity(float(scale), float(angle), float(t[0]), float(t[1]))
+
+
+def warp_mask(mask: np.ndarray, sim: Similarity, out_shape: tuple[int, int]) -> np.ndarray:
+    """Template mask -> bool mask on the image grid (nearest neighbour, outside = False)."""
+    src = np.ascontiguousarray(mask, dtype=np.uint8)
+    out = cv2.warpAffine(src, sim.matrix, (int(out_shape[1]), int(out_shape[0])), flags=cv2.INTER_NEAREST,
+                         borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    return out > 0
+
+
+def warp_labels(labels: np.ndarray, sim: Similarity, out_shape: tuple[int, int], fill: int = -1) -> np.ndarray:
+    """Template label map (e.g. regions, -1 outside) -> int32 labels on the image grid, nearest neighbour."""
+    src = np.ascontiguousarray(labels, dtype=np.float32)
+    out = cv2.warpAffine(src, sim.matrix, (int(out_shape[1]), int(out_shape[0])), flags=cv2.INTER_NEAREST,
+                         borderMode=cv2.BORDER_CONSTANT, borderValue=float(fill))
+    return np.rint(out).astype(np.int32)
+
+
+def align_template(template_mask: np.ndarray, object_mask: np.ndarray,
+                   template_grey: np.ndarray | None = None, object_grey: np.ndarray | None = None,
+                   max_angle: float = np.pi) -> tuple[Similarity, dict]:
+    """Find the template -> image similarity that best overlays the template on the object.
+
+    ``max_angle`` bounds the in-plane rotation searched (radians, either way), for
+    families whose objects are always near upright. Returns the similarity and
+    diagnostics: ``iou`` (full-resolution mask overlap), ``mutual_information``
+    (nats, at the refinement grid), ``coarse_iou`` (best candidate of the sweep) and
+    ``seconds``.
+    """
+    start = time.perf_counter()
+    template_mask = _checked_mask(template_mask, "template mask")
+    object_mask = _checked_mask(object_mask, "object mask")
+    if not 0.0 <= max_angle <= np.pi:
+        raise InputError(f"max_angle must be within [0, pi], got {max_angle}")
+    tpl = _MapPyramid(_intensity_map(template_mask, template_grey, "template"))
+    obj = _MapPyramid(_intensity_map(object_mask, object_grey, "object"))
+    bins = 2 if template_grey is None and object_grey is None else 16
+
+    tpl_centroid, tpl_area, tpl_axis = _mask_moments(template_mask)
+    obj_centroid, obj_area, obj_axis = _mask_moments(object_mask)
+    scale0 = float(np.sqrt(obj_area / tpl_area))
+    obj_radius = _max_radius(object_mask, obj_centroid)
+    tpl_radius = _max_radius(template_mask, tpl_centroid) * scale0
+    half_side = 1.15 * max(obj_radius, tpl_radius) + 2.0
+
+    coarse = _GridView(obj, obj_centroid, half_side, COARSE_GRID)
+    candidates = _coarse_candidates(tpl, coarse, tpl_centroid, obj_centroid, scale0,
+                                    obj_axis - tpl_axis, max_angle)
+    coarse_iou = candidates[0][0]
+
+    refined = [_refine_mi(tpl, coarse, bins, sim, tpl_centroid, max_angle, xtol=0.2)
+               for _, sim in candidates[:REFINED_CANDIDATES]]
+    best_mi, best = max(refined, key=lambda r: r[0])
+    fine_grid = int(np.clip(np.ceil(2.0 * half_side), COARSE_GRID, MAX_FINE_GRID))
+    fine = _GridView(obj, obj_centroid, half_side, fine_grid)
+    best_mi, best = _refine_mi(tpl, fine, bins, best, tpl_centroid, max_angle, xtol=0.05)
+
+    warped = warp_mask(template_mask, best, object_mask.shape)
+    inter = np.count_nonzero(warped & object_mask)
+    union = np.count_nonzero(warped | object_mask)
+    diagnostics = {
+        "iou": float(inter / union),
+        "mutual_information": float(best_mi),
+        "coarse_iou": float(coarse_iou),
+        "seconds": time.perf_counter() - start,
+    }
+    return best, diagnostics
+
+
+def _checked_mask(mask: np.ndarray, what: str) -> np.ndarray:
+    mask = np.asarray(mask)
+    if mask.ndim != 2:
+        raise InputError(f"{what} must be a 2D array, got shape {mask.shape}")
+    mask = mask > 0
+    if not mask.any():
+        raise InputError(f"{what} is empty")
+    return mask
+
+
+def _intensity_map(mask: np.ndarray, grey: np.ndarray | None, what: str) -> np.ndarray:
+    """Mask as float32 in [0, 1]; with a grey image, the object's grey rescaled to [0.25, 1].
+
+    Keeping the object's values above 0.25 keeps the silhouette itself visible to the
+    mutual information even where the grey image is dark.
+    """
+    if grey is None:
+        return mask.astype(np.float32)
+    grey = np.asarray(grey, dtype=np.float32)
+    if grey.shape != mask.shape:
+        raise InputError(f"{what} grey image has shape {grey.shape}, its mask has {mask.shape}")
+    inside = grey[mask]
+    lo, hi = float(inside.min()), float(inside.max())
+    norm = (grey - lo) / (hi - lo) if hi > lo else np.ones_like(grey)
+    return np.where(mask, 0.25 + 0.75 * np.clip(norm, 0.0, 1.0), 0.0).astype(np.float32)
+
+
+def _mask_moments(mask: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """Centroid (x, y), area in pixels and principal-axis angle (pixel frame) of a mask."""
+    m = cv2.moments(mask.astype(np.uint8), binaryImage=True)
+    centroid = np.array([m["m10"] / m["m00"], m["m01"] / m["m00"]])
+    axis = 0.5 * np.arctan2(2.0 * m["mu11"], m["mu20"] - m["mu02"])
+    return centroid, float(m["m00"]), float(axis)
+
+
+def _max_radius(mask: np.ndarray, centroid: np.ndarray) -> float:
+    rows, cols = np.nonzero(mask)
+    return float(np.sqrt(((cols - centroid[0]) ** 2 + (rows - centroid[1]) ** 2).max())) + 1.0
+
+
+class _MapPyramid:
+    """Gaussian pyramid of a float map, so warps that shrink it do not alias.
+
+    Level ``l`` pixel (x, y) sits at full-resolution (2^l x, 2^l y) (cv2.pyrDown samples
+    the even pixels).
+    """
+
+    def __init__(self, image: np.ndarray):
+        self.levels = [image]
+        while min(self.levels[-1].shape) >= 32:
+            self.levels.append(cv2.pyrDown(self.levels[-1]))
+
+    def warp(self, full_to_grid: np.ndarray, grid: int) -> np.ndarray:
+        """Resample onto a grid x grid image through a 2x3 full-resolution -> grid affine map."""
+        scale = np.sqrt(abs(np.linalg.det(full_to_grid[:, :2])))
+        level = int(np.clip(np.floor(-np.log2(max(scale, 1e-9)) + 1e-9), 0, len(self.levels) - 1))
+        m = full_to_grid.copy()
+        m[:, :2] *= 2.0 ** level
+        return cv2.warpAffine(self.levels[level], m, (grid, grid), flags=cv2.INTER_LINEAR,
+                              borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+
+
+class _GridView:
+    """A square window around the object, resampled to ``grid`` pixels: where scores are computed."""
+
+    def __init__(self, obj: _MapPyramid, centre: np.ndarray, half_side: float, grid: int):
+        self.grid = grid
+        self.image_to_grid = Similarity.about(centre, np.full(2, (grid - 1) / 2.0), grid / (2.0 * half_side), 0.0)
+        self.object = obj.warp(self.image_to_grid.matrix, grid).ravel()
+
+    def template(self, tpl: _MapPyramid, sim: Similarity) -> np.ndarray:
+        return tpl.warp(self.image_to_grid.compose(sim).matrix, self.grid).ravel()
+
+
+def _coarse_candidates(tpl: _MapPyramid, view: _GridView, tpl_centroid: np.ndarray, obj_centroid: np.ndarray,
+                       scale0: float, axis_angle: float, max_angle: float) -> list[tuple[float, Similarity]]:
+    """Overlap-ranked (IoU, similarity) candidates, centroids matched, angles at least 15 degrees apart."""
+    n_steps = int(np.floor(max_angle / ANGLE_STEP))
+    angles = list(ANGLE_STEP * np.arange(-n_steps, n_steps + 1))
+    for a in (axis_angle, axis_angle + np.pi):
+        a = float(np.angle(np.exp(1j * a)))
+        if abs(a) <= max_angle:
+            angles.append(a)
+    obj_in = view.object > 0.5
+    scored = []
+    for angle in angles:
+        for factor in SCALE_FACTORS:
+            sim = Similarity.about(tpl_centroid, obj_centroid, scale0 * factor, angle)
+            tpl_in = view.template(tpl, sim) > 0.5
+            union = np.count_nonzero(tpl_in | obj_in)
+            scored.append((np.count_nonzero(tpl_in & obj_in) / max(union, 1), sim))
+    scored.sort(key=lambda s: -s[0])
+    kept: list[tuple[float, Similarity]] = []
+    for iou, sim in scored:
+        if all(abs(np.angle(np.exp(1j * (sim.angle - k.angle)))) > np.deg2rad(15) for _, k in kept):
+            kept.append((iou, sim))
+    return kept
+
+
+def _mutual_information(tpl_values: np.ndarray, obj_bins: np.ndarray, obj_counts: np.ndarray, bins: int) -> float:
+    """MI of the joint histogram; template values are split linearly between neighbouring bins.
+
+    The linear split makes the score vary smoothly with sub-pixel moves, which the
+    gradient-free optimiser needs; the object side is fixed, so hard bins suffice.
+    """
+    t = tpl_values * (bins - 1)
+    if bins == 2:  # a soft mask: its upper-bin column is a weighted count, the lower one the rest
+        upper = np.bincount(obj_bins, weights=t, minlength=2)
+        joint = np.stack([obj_counts - upper, upper], axis=1)
+    else:
+        low = np.minimum(np.floor(t), bins - 2).astype(np.intp)
+        frac = t - low
+        idx = obj_bins * bins + low
+        joint = np.bincount(np.concatenate([idx, idx + 1]), np.concatenate([1.0 - frac, frac]),
+                            minlength=bins * bins).reshape(bins, bins)
+    joint = joint / joint.sum()
+    p_obj, p_tpl = joint.sum(axis=1, keepdims=True), joint.sum(axis=0, keepdims=True)
+    nz = joint > 0
+    return float(np.sum(joint[nz] * np.log(joint[nz] / (p_obj @ p_tpl)[nz])))
+
+
+def _refine_mi(tpl: _MapPyramid, view: _GridView, bins: int, start: Similarity, tpl_centroid: np.ndarray,
+               max_angle: float, xtol: float) -> tuple[float, Similarity]:
+    """Powell search of (log scale, angle, shift) maximising MI, rotating about the template centroid.
+
+    Parameters are expressed in grid pixels of displacement at the object's rim, so one
+    unit of each moves the silhouette by about one grid pixel.
+    """
+    obj_bins = np.rint(view.object * (bins - 1)).astype(np.intp)
+    obj_counts = np.bincount(obj_bins, minlength=bins).astype(np.float64)
+    grid_px = 1.0 / view.image_to_grid.scale
+    rim = 0.4 * view.grid
+    centre = start.apply(tpl_centroid[None])[0]
+
+    def similarity(x: np.ndarray) -> Similarity:
+        return Similarity.about(tpl_centroid, centre + x[2:] * grid_px, start.scale * np.exp(x[0] / rim),
+                                start.angle + x[1] / rim)
+
+    def cost(x: np.ndarray) -> float:
+        return -_mutual_information(view.template(tpl, similarity(x)), obj_bins, obj_counts, bins)
+
+    angle_bounds = (None, None)
+    if max_angle < np.pi:
+        angle_bounds = ((-max_angle - start.angle) * rim, (max_angle - start.angle) * rim)
+    reach = view.grid / 4.0  # the start is within a few grid pixels; this keeps line searches sane
+    bounds = [(-np.log(2.0) * rim, np.log(2.0) * rim), angle_bounds, (-reach, reach), (-reach, reach)]
+    result = minimize(cost, np.zeros(4), method="Powell", bounds=bounds,
+                      options={"xtol": xtol, "ftol": 1e-5, "maxfev": 400})
+    best = similarity(result.x)
+    best = Similarity(best.scale, float(np.angle(np.exp(1j * best.angle))), best.tx, best.ty)
+    return -float(result.fun), best

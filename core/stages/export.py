@@ -1,0 +1,163 @@
+"""Export (last stage): write the textured model in the formats 3D tools read.
+
+``model.glb`` is the main output: one PBR material with the atlas as base colour and
+the derived normal map, and the landmarks as named empty child nodes of the model
+node, so a VR scene can attach a strap or a wheel by name. ``model.obj`` +
+``model.mtl`` + ``texture.png`` + ``normal.png`` serve tools without glTF.
+Everything is written into a hidden staging folder next to ``out_dir`` and only
+moved into place once complete, so a failure never leaves half a model behind.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pygltflib
+from PIL import Image
+
+from frontal3d.errors import InputError, TemplateError
+from frontal3d.stages.texture import TexturedMesh
+
+#: Distinct colours for label maps in the debug folder (label -1, "outside", is black).
+_LABEL_PALETTE = np.array([
+    [230, 25, 75], [60, 180, 75], [255, 225, 25], [0, 130, 200], [245, 130, 48],
+    [145, 30, 180], [70, 240, 240], [240, 50, 230], [210, 245, 60], [250, 190, 190],
+], np.uint8)
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, Path):
+        return str(value)
+    raise TypeError(f"report value of type {type(value).__name__} is not JSON serializable")
+
+
+def _glb_with_landmarks(textured: TexturedMesh, landmarks: dict[str, np.ndarray]) -> bytes:
+    """trimesh's GLB plus one named, empty child node per landmark under the model node."""
+    gltf = pygltflib.GLTF2.load_from_bytes(textured.mesh.export(file_type="glb"))
+    model_node = next(i for i, node in enumerate(gltf.nodes) if node.mesh is not None)
+    parent = gltf.nodes[model_node]
+    parent.name = parent.name or "model"
+    for name, position in landmarks.items():
+        gltf.nodes.append(pygltflib.Node(name=name, translation=[float(v) for v in position]))
+        parent.children = [*(parent.children or []), len(gltf.nodes) - 1]
+    return b"".join(gltf.save_to_bytes())
+
+
+def _obj_text(textured: TexturedMesh) -> str:
+    """Wavefront OBJ: one UV per vertex (the mesh is already split along UV seams)."""
+    mesh = textured.mesh
+    vertices = np.asarray(mesh.vertices)
+    uv = np.asarray(mesh.visual.uv)
+    faces = np.asarray(mesh.faces) + 1
+    out = io.StringIO()
+    out.write("# frontal3d textured model\nmtllib model.mtl\nusemtl frontal3d_texture\n")
+    np.savetxt(out, vertices, fmt="v %.7g %.7g %.7g")
+    np.savetxt(out, uv, fmt="vt %.7g %.7g")
+    np.savetxt(out, np.repeat(faces, 2, axis=1), fmt="f %d/%d %d/%d %d/%d")
+    return out.getvalue()
+
+
+#: ``map_Bump`` carries the tangent-space normal map: Blender's OBJ importer reads
+#: it as a normal map, which is what it is.
+_MTL_TEXT = """# frontal3d material
+newmtl frontal3d_texture
+Ka 1.000 1.000 1.000
+Kd 1.000 1.000 1.000
+Ks 0.000 0.000 0.000
+d 1.0
+illum 1
+map_Kd texture.png
+map_Bump normal.png
+"""
+
+
+def _debug_image(array: np.ndarray) -> np.ndarray:
+    """A viewable 8-bit picture of an intermediate map (mask, label map, depth)."""
+    array = np.asarray(array)
+    if array.ndim == 3 and array.dtype == np.uint8:
+        return array
+    if array.dtype == bool:
+        return array.astype(np.uint8) * 255
+    if np.issubdtype(array.dtype, np.integer):
+        picture = _LABEL_PALETTE[np.mod(array, len(_LABEL_PALETTE))]
+        picture[array < 0] = 0
+        return picture
+    values = np.asarray(array, dtype=np.float64)
+    finite = np.isfinite(values)
+    if not finite.any():
+        return np.zeros(values.shape[:2], np.uint8)
+    low, high = values[finite].min(), values[finite].max()
+    scaled = (values - low) / (high - low if high > low else 1.0)
+    return np.where(finite, np.clip(scaled * 254 + 1, 1, 255), 0).astype(np.uint8)
+
+
+def _write_all(folder: Path, textured: TexturedMesh, landmarks: dict[str, np.ndarray], report: dict,
+               debug_maps: dict[str, np.ndarray], preview_size: int | None) -> list[str]:
+    (folder / "model.glb").write_bytes(_glb_with_landmarks(textured, landmarks))
+    (folder / "model.obj").write_text(_obj_text(textured))
+    (folder / "model.mtl").write_text(_MTL_TEXT)
+    Image.fromarray(textured.atlas).save(folder / "texture.png")
+    Image.fromarray(textured.normal_map).save(folder / "normal.png")
+    names = ["model.glb", "model.obj", "model.mtl", "texture.png", "normal.png"]
+    if preview_size:
+        from frontal3d.preview import render_preview  # open3d loads only when a preview is wanted
+
+        render_preview(textured, folder / "preview.png", size=preview_size)
+        names.append("preview.png")
+    if debug_maps:
+        (folder / "debug").mkdir()
+        for name, array in debug_maps.items():
+            Image.fromarray(_debug_image(array)).save(folder / "debug" / f"{name}.png")
+        names.append("debug")
+    (folder / "report.json").write_text(json.dumps(report, indent=2, default=_json_default))
+    names.append("report.json")
+    return names
+
+
+def export_all(out_dir: Path, textured: TexturedMesh, landmarks: dict[str, np.ndarray], report: dict,
+               debug_maps: dict[str, np.ndarray] | None = None, preview_size: int | None = 512) -> dict[str, Path]:
+    """Write the model files into ``out_dir`` and return ``{file name stem or kind: path}``.
+
+    Keys: ``glb``, ``obj``, ``mtl``, ``texture``, ``normal``, ``report``, and
+    ``preview`` (a 2 x 2 view sheet, unless ``preview_size`` is None) and ``debug``
+    (a folder of intermediate maps as PNGs, when ``debug_maps`` is given). A new
+    ``out_dir`` appears in one rename; into an existing one only these files are
+    moved (each replaced atomically), so unrelated files there are never touched.
+    """
+    out_dir = Path(out_dir)
+    for name, position in landmarks.items():
+        if np.shape(position) != (3,) or not np.all(np.isfinite(position)):
+            raise TemplateError(f"landmark {name!r} must be a finite 3D point, got {position!r}")
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(f"output path {out_dir} exists and is not a folder")
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", suffix=".partial", dir=out_dir.parent))
+    try:
+        staging.chmod(0o755)  # mkdtemp makes it private; the result is an ordinary folder
+        names = _write_all(staging, textured, landmarks, report, debug_maps or {}, preview_size)
+        if out_dir.exists():
+            for name in names:
+                target = out_dir / name
+                if name == "debug" and target.exists():
+                    shutil.rmtree(target)
+                os.replace(staging / name, target)
+            staging.rmdir()
+        else:
+            staging.rename(out_dir)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    keys = {"model.glb": "glb", "model.obj": "obj", "model.mtl": "mtl", "texture.png": "texture",
+            "normal.png": "normal", "preview.png": "preview", "debug": "debug", "report.json": "report"}
+    return {keys[name]: out_dir / name for name in names}
