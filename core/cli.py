@@ -100,6 +100,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--renders", type=Path, help="folder of <id>.png/<id>_mask.png/<id>.json frontal renders (default: render them)")
     p.add_argument("--method", choices=["template", "slab"], default="template", help="template (the pipeline) or slab (the plain extrusion baseline)")
     p.add_argument("--limit", type=int, help="only the first N meshes")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a family setting for the template method")
     p.add_argument("-o", "--out", type=Path, default=Path("frontal3d-eval"), help="output folder")
     p.set_defaults(run=_cmd_evaluate)
 
@@ -246,13 +247,17 @@ def _cmd_template_show(args: argparse.Namespace) -> int:
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
-    from frontal3d.evaluate import pipeline_reconstructor, print_summary, run_evaluation, slab_reconstructor
+    from frontal3d.baseline import SLAB_THICKNESS_RATIO, slab_reconstructor
+    from frontal3d.evaluate import pipeline_reconstructor, run_evaluation, summary_lines
 
     plugins = _plugins(args)
     plugins.family(args.family)
-    reconstructor = slab_reconstructor() if args.method == "slab" else pipeline_reconstructor(plugins, args.family)
-    rows = run_evaluation(args.family, args.meshes, args.renders, reconstructor, args.out, limit=args.limit)
-    print_summary(rows)
+    if args.method == "slab":
+        reconstructor = slab_reconstructor(SLAB_THICKNESS_RATIO.get(args.family, 0.1))
+    else:
+        reconstructor = pipeline_reconstructor(plugins, args.family, **_parse_sets(args.set))
+    rows = run_evaluation(args.family, args.meshes, args.renders, reconstructor, args.out, limit=args.limit, progress=sys.stderr.isatty())
+    print("\n".join(summary_lines(rows)))
     print(f"wrote {args.out}/metrics.csv, summary.csv, boxplots.png")
     return 0
 

@@ -25,7 +25,8 @@ CORE_FAMILY_SETTINGS: dict[str, Any] = {
     "boundary_k": 0,  # DP jump bound k of eq. (2); 0 = scale the paper's 128 @ 350 px with resolution
     "region_k": 32,  # the per-region jump bound K of section 3.2.2
     "max_angle_deg": 180.0,  # in-plane rotation searched by the alignment
-    "frontal_threshold": 0.75,  # minimum silhouette agreement of the frontal gate
+    "frontal_threshold": 0.45,  # minimum silhouette agreement (IoU x foreshortening) of the frontal gate
+    "depth_scale": "global",  # local, smooth or global: how depth follows the warp's stretch
     "smooth_iterations": 10,  # Laplacian smoothing passes of the mesh
     "max_vertices": 0,  # 0 = keep every pixel's vertex
     "symmetry": "none",  # name of a symmetry rule

@@ -39,6 +39,7 @@ import traceback
 from collections.abc import Callable
 from pathlib import Path
 
+import cv2
 import numpy as np
 import open3d as o3d
 import trimesh
@@ -49,6 +50,8 @@ from frontal3d.errors import InputError
 
 #: Resolution and side of the voxel grid the paper's IoU uses (normalized units).
 VOXEL_RESOLUTION = 128
+#: Offset (in voxels) of the mesh against the grid, irregular so no face sits on a voxel plane.
+GRID_JITTER = np.array([0.0137, 0.0071, 0.0113])
 #: ICP only pairs voxels this close (normalized units, ~13 voxels at 128^3).
 ICP_MAX_DISTANCE = 0.1
 #: Longest bounding-box edge of both meshes for the point metrics (unit = 1/10 of it).
@@ -97,8 +100,11 @@ def voxelize_filled(mesh: trimesh.Trimesh, resolution: int = VOXEL_RESOLUTION) -
     Filling is the orthographic one described in the module docstring.
     """
     pitch = 1.0 / resolution
+    # Axis-aligned faces lying exactly on a voxel boundary (slabs, boxes) are dropped by
+    # open3d's triangle-box test; a tiny, irregular offset keeps every face off the planes.
+    vertices = np.asarray(mesh.vertices, dtype=np.float64) + GRID_JITTER * pitch
     o3d_mesh = o3d.geometry.TriangleMesh(
-        o3d.utility.Vector3dVector(np.asarray(mesh.vertices, dtype=np.float64)),
+        o3d.utility.Vector3dVector(vertices),
         o3d.utility.Vector3iVector(np.asarray(mesh.faces, dtype=np.int32)),
     )
     lower = np.full(3, -0.5 - pitch)
@@ -208,3 +214,199 @@ def evaluate_pair(pred: trimesh.Trimesh, gt: trimesh.Trimesh, seed: int = 0) -> 
     """All three paper metrics for one prediction: ``iou``, ``chamfer_l1``, ``fscore`` (0..1)."""
     chamfer, fscore = chamfer_f(pred, gt, seed=seed)
     return {"iou": voxel_iou(pred, gt), "chamfer_l1": chamfer, "fscore": fscore}
+
+
+# --------------------------------------------------------------------------- drivers
+
+#: Side of the square frontal render made when no renders are given (pixels).
+RENDER_RESOLUTION = 512
+#: Fraction of the frame the longest image-plane extent spans (as the shared renders).
+RENDER_FILL = 0.9
+METRIC_KEYS = ("iou", "chamfer_l1", "fscore")
+CSV_FIELDS = ("id", "family", "subtype", "iou", "chamfer_l1", "fscore", "seconds", "error")
+
+
+def render_frontal(mesh: trimesh.Trimesh, resolution: int = RENDER_RESOLUTION) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Orthographic render along -Z: (RGB uint8 image, bool mask, camera dict).
+
+    Same camera as the shared renders: centred at the bbox centre, longest X/Y extent =
+    90 % of the frame, one ray per pixel centre. Shading is Lambert on a grey base with
+    flat normals turned to the camera (0.15 ambient + 0.65 camera light + 0.25 upper-left).
+    """
+    _check_mesh(mesh, "ground-truth")
+    lo, hi = mesh.bounds
+    center = 0.5 * (lo[:2] + hi[:2])
+    half_width = 0.5 * float(np.max(hi[:2] - lo[:2])) / RENDER_FILL
+    pixel = 2.0 * half_width / resolution
+    cols = center[0] - half_width + (np.arange(resolution) + 0.5) * pixel
+    rows = center[1] + half_width - (np.arange(resolution) + 0.5) * pixel
+    x, y = np.meshgrid(cols, rows)
+    origins = np.stack([x, y, np.full_like(x, hi[2] + 1.0)], axis=-1)
+    directions = np.broadcast_to(np.array([0.0, 0.0, -1.0]), origins.shape)
+    rays = o3d.core.Tensor(np.concatenate([origins, directions], axis=-1).astype(np.float32))
+
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(o3d.core.Tensor(mesh.vertices.astype(np.float32)), o3d.core.Tensor(mesh.faces.astype(np.uint32)))
+    hit = scene.cast_rays(rays)
+    mask = np.isfinite(hit["t_hit"].numpy())
+    normals = hit["primitive_normals"].numpy()
+    normals = normals * np.where(normals[..., 2:3] < 0, -1.0, 1.0)
+    upper_left = np.array([-1.0, 1.0, 1.0]) / math.sqrt(3.0)
+    shade = 0.15 + 0.65 * normals[..., 2] + 0.25 * np.clip(normals @ upper_left, 0.0, None)
+    grey = np.clip(0.8 * shade * mask, 0.0, 1.0)
+    image = np.repeat((grey * 255).astype(np.uint8)[..., None], 3, axis=-1)
+    camera = {"center": center.tolist(), "half_width": half_width, "resolution": [resolution, resolution]}
+    return image, mask, camera
+
+
+def _load_render(renders_dir: Path, mesh_id: str) -> tuple[np.ndarray, np.ndarray, dict]:
+    image = cv2.imread(str(renders_dir / f"{mesh_id}.png"), cv2.IMREAD_COLOR)
+    mask = cv2.imread(str(renders_dir / f"{mesh_id}_mask.png"), cv2.IMREAD_GRAYSCALE)
+    camera_path = renders_dir / f"{mesh_id}.json"
+    if image is None or mask is None or not camera_path.is_file():
+        raise InputError(f"render of {mesh_id} missing in {renders_dir} (need .png, _mask.png and .json)")
+    return image[..., ::-1].copy(), mask > 127, json.loads(camera_path.read_text())
+
+
+def _load_mesh(path: Path) -> trimesh.Trimesh:
+    mesh = trimesh.load(path, force="mesh")
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        raise InputError(f"ground-truth mesh {path} has no triangles")
+    return mesh
+
+
+def run_evaluation(
+    family: str,
+    meshes_dir: Path,
+    renders_dir: Path | None,
+    reconstruct: Reconstruct,
+    out_dir: Path,
+    limit: int | None = None,
+    progress: bool = True,
+) -> list[dict]:
+    """Reconstruct every ``*.glb`` of ``meshes_dir`` from its frontal view and score it.
+
+    The view is ``renders_dir/<id>.png``, ``<id>_mask.png``, ``<id>.json`` when given,
+    otherwise rendered here by :func:`render_frontal`. Contract for ``reconstruct(image
+    RGB uint8, mask bool, camera dict)``: it returns a mesh whose X/Y line up with the
+    camera (``center``, ``half_width``: the ground truth's units and frame); its Z
+    placement and overall scale are free, since every metric re-centres and normalizes
+    each mesh. It may name the subtype it chose in ``mesh.metadata['subtype']``.
+    A reconstruction that raises is recorded as a row with its error, not a crash.
+    Writes ``metrics.csv``, ``summary.csv`` and ``boxplots.png`` into ``out_dir``.
+    """
+    meshes_dir, out_dir = Path(meshes_dir), Path(out_dir)
+    paths = sorted(meshes_dir.glob("*.glb"))[:limit]
+    if not paths:
+        raise InputError(f"no *.glb meshes in {meshes_dir}")
+    out_dir.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for path in _progress(paths, progress, family):
+        row = {"id": path.stem, "family": family, "subtype": "", "seconds": float("nan"), "error": ""}
+        row.update({key: float("nan") for key in METRIC_KEYS})
+        try:
+            gt = _load_mesh(path)
+            image, mask, camera = _load_render(Path(renders_dir), path.stem) if renders_dir else render_frontal(gt)
+            start = time.perf_counter()
+            prediction = reconstruct(image, mask, camera)
+            row["seconds"] = time.perf_counter() - start
+            row["subtype"] = str(prediction.metadata.get("subtype", ""))
+            row.update(evaluate_pair(prediction, gt))
+        except Exception as error:  # noqa: BLE001 - one bad mesh must not stop a benchmark
+            row["error"] = f"{type(error).__name__}: {error}".splitlines()[0]
+            if progress and not isinstance(error, InputError):
+                traceback.print_exc()
+        rows.append(row)
+    _write_csv(out_dir / "metrics.csv", CSV_FIELDS, rows)
+    _write_summary(out_dir / "summary.csv", rows)
+    _write_boxplots(out_dir / "boxplots.png", rows)
+    return rows
+
+
+def _progress(paths: list[Path], enabled: bool, family: str):
+    if not enabled:
+        return paths
+    from tqdm import tqdm
+
+    return tqdm(paths, desc=f"evaluate {family}", unit="mesh")
+
+
+def _write_csv(path: Path, fields: tuple[str, ...], rows: list[dict]) -> None:
+    with path.open("w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=fields, extrasaction="ignore")
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def _groups(rows: list[dict]) -> dict[tuple[str, str], list[dict]]:
+    """Rows per (family, 'all') and per (family, subtype) when subtypes are known."""
+    groups: dict[tuple[str, str], list[dict]] = {}
+    for row in rows:
+        groups.setdefault((row["family"], "all"), []).append(row)
+        if row["subtype"]:
+            groups.setdefault((row["family"], row["subtype"]), []).append(row)
+    return groups
+
+
+def _write_summary(path: Path, rows: list[dict]) -> None:
+    """Mean and median of each metric per family and subtype, over the meshes that scored."""
+    fields = ["family", "subtype", "n", "n_failed"] + [f"{k}_{s}" for k in METRIC_KEYS for s in ("mean", "median")]
+    summary = []
+    for (family, subtype), members in _groups(rows).items():
+        scored = [r for r in members if not r["error"]]
+        line = {"family": family, "subtype": subtype, "n": len(scored), "n_failed": len(members) - len(scored)}
+        for key in METRIC_KEYS:
+            values = [r[key] for r in scored]
+            line[f"{key}_mean"] = statistics.fmean(values) if values else float("nan")
+            line[f"{key}_median"] = statistics.median(values) if values else float("nan")
+        summary.append(line)
+    _write_csv(path, tuple(fields), summary)
+
+
+def _write_boxplots(path: Path, rows: list[dict]) -> None:
+    """One box plot per metric, one box per family/subtype group (the paper's Fig. 13)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    groups = _groups(rows)
+    labels = [f"{family}\n{subtype}" for family, subtype in groups]
+    titles = {"iou": "IoU", "chamfer_l1": "Chamfer-L1", "fscore": "F-score"}
+    figure, axes = plt.subplots(1, 3, figsize=(4 + 1.5 * len(labels), 4))
+    for axis, key in zip(axes, METRIC_KEYS):
+        data = [[r[key] for r in members if not r["error"]] or [float("nan")] for members in groups.values()]
+        axis.boxplot(data, tick_labels=labels)
+        axis.set_title(titles[key])
+        axis.grid(axis="y", alpha=0.3)
+    figure.tight_layout()
+    figure.savefig(path, dpi=100)
+    plt.close(figure)
+
+
+# --------------------------------------------------------------------------- CLI glue
+def pipeline_reconstructor(plugins, family: str, **settings) -> Reconstruct:
+    """The frontal3d pipeline as a ``reconstruct`` callable, the mask given (the paper's protocol)."""
+    from frontal3d.pipeline import reconstruct
+
+    def run(image: np.ndarray, mask: np.ndarray, camera: dict) -> trimesh.Trimesh:
+        result = reconstruct(image, family, mask=mask, plugins=plugins, **settings)
+        mesh = result.mesh.copy()
+        mesh.metadata["subtype"] = result.report["subtype"]
+        return mesh
+
+    return run
+
+
+def summary_lines(rows: list[dict]) -> list[str]:
+    """The summary table as text lines (mean / median per family and subtype)."""
+    lines = [f"{'group':<22}{'n':>4}{'failed':>8}{'IoU':>14}{'Chamfer-L1':>16}{'F-score':>14}"]
+    for (family, subtype), members in _groups(rows).items():
+        scored = [r for r in members if not r["error"]]
+        cells = []
+        for key in METRIC_KEYS:
+            values = [r[key] for r in scored]
+            cells.append(f"{statistics.fmean(values):.3f}/{statistics.median(values):.3f}" if values else "-")
+        lines.append(f"{family + '/' + subtype:<22}{len(scored):>4}{len(members) - len(scored):>8}{cells[0]:>14}{cells[1]:>16}{cells[2]:>14}")
+    lines.append("(mean/median; F-score as a fraction)")
+    return lines

@@ -19,7 +19,7 @@ from typing import Any, Callable, Iterator
 import cv2
 import numpy as np
 
-from frontal3d.errors import InputError, NoObjectError, NotFrontalError, TemplateError, UnknownFamilyError
+from frontal3d.errors import ConfigError, InputError, NoObjectError, NotFrontalError, TemplateError, UnknownFamilyError
 from frontal3d.family import Family, Template
 from frontal3d.imageio import as_rgb, read_image, read_mask
 from frontal3d.plugins import Plugins
@@ -198,7 +198,7 @@ def _reconstruct_shape_and_texture(
 
     with report.stage("boundary", progress):
         k = int(settings["boundary_k"]) or boundary.default_k(max(work_mask.shape))
-        input_contour = boundary.trace_contour(work_mask)
+        input_contour = boundary.trace_contour(_joined(work_mask))
         template_contour = similarity.apply(boundary.trace_contour(renders.mask))
         omega = boundary.match_contours(input_contour, template_contour, k)
         template_regions_img = align.warp_labels(renders.front_regions, similarity, work_mask.shape)
@@ -223,7 +223,7 @@ def _reconstruct_shape_and_texture(
 
     with report.stage("mesh", progress):
         pixel_size = renders.pixel_size / similarity.scale
-        relative_scale = warped.local_scale / similarity.scale
+        relative_scale = _depth_scale(warped.local_scale / similarity.scale, work_mask, settings["depth_scale"])
         front_z = warped.front_depth * relative_scale
         back_z = warped.back_depth * relative_scale
         rule = _rule(plugins.hook.frontal3d_symmetry_rules(), settings["symmetry"], "symmetry")
@@ -282,12 +282,32 @@ def _segment(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dict[str,
     objects = segment.split_objects(np.asarray(found, dtype=bool))
     if not objects:
         raise NoObjectError(f"no {fam.name} found in the image: the segmented area is too small")
-    if len(objects) > 1:
-        report.warn(f"{len(objects)} objects found; reconstructing the largest ({int(objects[0].sum())} pixels)")
-    chosen = objects[0]
+    chosen, others = _group_near_largest(objects)
+    if others:
+        report.warn(f"{others + 1} separate objects found; reconstructing the largest ({int(chosen.sum())} pixels)")
     if _touches_border(chosen):
         report.warn("the object touches the image border: parts of it may be cut off")
     return chosen
+
+
+def _group_near_largest(objects: list[np.ndarray]) -> tuple[np.ndarray, int]:
+    """The largest component plus every component near it (a wheel or tail the mask split
+    off belongs to the same object); returns that mask and how many objects were left out.
+
+    "Near" is within 8 % of the largest component's longest side.
+    """
+    chosen = objects[0].copy()
+    ys, xs = np.nonzero(chosen)
+    radius = max(2, int(0.08 * max(np.ptp(ys), np.ptp(xs))))
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
+    reach = cv2.dilate(chosen.astype(np.uint8), kernel) > 0
+    left_out = 0
+    for component in objects[1:]:
+        if (component & reach).any():
+            chosen |= component
+        else:
+            left_out += 1
+    return chosen, left_out
 
 
 def _classify(plugins: Plugins, rgb: np.ndarray, object_mask: np.ndarray, fam: Family, settings: dict[str, Any], forced_subtype: str | None):
@@ -333,6 +353,14 @@ def _load_optional_mask(mask: np.ndarray | str | Path | None, shape: tuple[int, 
     return mask
 
 
+def _joined(mask: np.ndarray) -> np.ndarray:
+    """The mask closed just enough to join nearby pieces, so one outline traces the object."""
+    ys, xs = np.nonzero(mask)
+    radius = max(1, int(0.04 * max(np.ptp(ys), np.ptp(xs))))
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
+    return cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_CLOSE, kernel) > 0
+
+
 def _crop_for(mask: np.ndarray, working_resolution: int) -> _Crop:
     ys, xs = np.nonzero(mask)
     y0, y1, x0, x1 = ys.min(), ys.max() + 1, xs.min(), xs.max() + 1
@@ -347,6 +375,23 @@ def _to_working(array: np.ndarray, crop: _Crop, interpolation: int) -> np.ndarra
     cropped = array[crop.y0 : crop.y0 + crop.height, crop.x0 : crop.x0 + crop.width]
     h, w = crop.working_shape
     return cv2.resize(cropped, (w, h), interpolation=interpolation)
+
+
+def _depth_scale(relative_scale: np.ndarray, mask: np.ndarray, mode: str) -> np.ndarray:
+    """How much to scale the template's depth at each pixel (paper 3.2.5: "we scale the Z
+    dimension accordingly"): ``local`` follows the warp's local stretch, ``smooth`` the
+    same blurred over a tenth of the object, ``global`` only the alignment's scale.
+    """
+    if mode == "global":
+        return np.ones_like(relative_scale)
+    if mode == "smooth":
+        sigma = 0.1 * max(mask.shape)
+        weight = cv2.GaussianBlur(mask.astype(np.float32), (0, 0), sigma)
+        blurred = cv2.GaussianBlur(np.where(mask, relative_scale, 0).astype(np.float32), (0, 0), sigma)
+        return np.where(weight > 1e-6, blurred / np.maximum(weight, 1e-6), 1.0)
+    if mode == "local":
+        return relative_scale
+    raise ConfigError(f"depth_scale must be local, smooth or global, not {mode!r}")
 
 
 def _shade(normals: np.ndarray, mask: np.ndarray) -> np.ndarray:

@@ -48,11 +48,12 @@ def render_view(textured: TexturedMesh, towards_camera: np.ndarray, width: int, 
     ``shade=False`` returns the bare texture colour (for checking reprojection).
     """
     mesh = textured.mesh
+    center = np.asarray(center, dtype=np.float64)
     forward, right, up = _camera_axes(towards_camera)
     radius = float(np.linalg.norm(mesh.bounds[1] - mesh.bounds[0])) + 1.0
     cols = ((np.arange(width) + 0.5) / width * 2.0 - 1.0) * half_extent[0]
     rows = (1.0 - (np.arange(height) + 0.5) / height * 2.0) * half_extent[1]
-    origins = (np.asarray(center, dtype=np.float64) - forward * (radius + np.linalg.norm(center - mesh.centroid))
+    origins = (center - forward * (radius + np.linalg.norm(center - mesh.centroid))
                + cols[None, :, None] * right + rows[:, None, None] * up)
     rays = np.concatenate([origins.reshape(-1, 3), np.broadcast_to(forward, (width * height, 3))], axis=1)
 

@@ -12,7 +12,7 @@ from frontal3d.stages.inpaint import inpaint_regions, largest_square, scaled_pat
 OCCLUDER = np.array([0, 255, 0], np.uint8)
 
 
-def _two_region_scene(seed=0):
+def _two_region_scene(seed=0, with_arm=True):
     """A 200 x 200 photo: a wide noisy-red region 0, a 10 px wide noisy-blue strip (region 1),
     and a green 'arm' covering parts of both."""
     rng = np.random.default_rng(seed)
@@ -26,7 +26,8 @@ def _two_region_scene(seed=0):
     image[region_map == 0] = red[region_map == 0]
     image[region_map == 1] = blue[region_map == 1]
     arm = (np.abs(rows - 100) < 15) & (cols > 90) & (cols < 175)
-    image[arm] = OCCLUDER
+    if with_arm:
+        image[arm] = OCCLUDER
     return image, region_map, arm
 
 
@@ -57,18 +58,18 @@ def test_pixels_outside_the_regions_and_far_from_the_hole_are_unchanged():
 def test_quilting_keeps_the_texture_instead_of_smearing_it():
     rng = np.random.default_rng(3)
     rows, cols = np.mgrid[:300, :300]
-    stripes = (128 + 80 * np.sign(np.sin(cols / 4.0)) + rng.normal(0, 6, (300, 300))).clip(0, 255)
+    stripes = (128 + 80 * np.sign(np.sin((cols + 0.3 * rows) / 4.0)) + rng.normal(0, 6, (300, 300))).clip(0, 255)
     image = np.repeat(stripes[..., None], 3, axis=2).astype(np.uint8)
     region_map = np.zeros((300, 300), int)
     hole = (rows - 150) ** 2 + (cols - 150) ** 2 < 60**2
     out = inpaint_regions(image, region_map, hole)
     filled, visible = out[hole][:, 0].astype(float), image[~hole][:, 0].astype(float)
-    assert filled.std() > 0.8 * visible.std()
-    assert abs(filled.mean() - visible.mean()) < 10
+    assert filled.std() > 0.9 * visible.std()
+    assert abs(filled.mean() - visible.mean()) < 8
 
 
 def test_a_region_with_no_visible_pixel_is_still_filled():
-    image, region_map, _ = _two_region_scene()
+    image, region_map, _ = _two_region_scene(with_arm=False)
     hidden = region_map == 1
     image[hidden] = OCCLUDER
     out = inpaint_regions(image, region_map, hidden)

@@ -81,7 +81,9 @@ def quilt(exemplar: np.ndarray, out_shape: tuple[int, int], rng: np.random.Gener
 
     ``needed`` (bool, ``out_shape``) lets the caller skip blocks it will never use:
     a block is only placed where it touches a needed pixel, and only its placed
-    neighbours constrain it. Pixels of skipped blocks are zero.
+    neighbours constrain it. Pixels of skipped blocks are zero. Blocks are half the
+    exemplar with a quarter-block overlap: wide enough overlaps to keep stripes
+    continuous, while still offering (side / 2)^2 candidate blocks.
     """
     exemplar = exemplar.astype(np.float32)
     side = exemplar.shape[0]
@@ -169,12 +171,15 @@ def _exemplar_fill(out: np.ndarray, hole: np.ndarray, source: np.ndarray, half: 
     continued before flat areas. Returns False when ``source`` holds no whole patch.
     """
     n_labels, labels = cv2.connectedComponents(hole.astype(np.uint8), connectivity=8)
+    region_rows, region_cols = _bounding_box(source | hole, 0)
     for label in range(1, n_labels):
         component = labels == label
         patch_half = half
         while True:
             for margin in (12 * (2 * patch_half + 1), max(hole.shape)):
-                rows, cols = _bounding_box(component, margin)
+                near_rows, near_cols = _bounding_box(component, margin)
+                rows = slice(max(near_rows.start, region_rows.start), min(near_rows.stop, region_rows.stop))
+                cols = slice(max(near_cols.start, region_cols.start), min(near_cols.stop, region_cols.stop))
                 size = 2 * patch_half + 1
                 src = source[rows, cols]
                 if min(src.shape) < size:
@@ -263,7 +268,7 @@ def inpaint_regions(image: np.ndarray, region_map: np.ndarray, fill_mask: np.nda
                          f"must match the image size {image.shape[:2]}")
     rng = np.random.default_rng(seed)
     low, high = scaled_patch_range(image.shape, patch_min, patch_max)
-    exemplar_half = max(4, low // 12)
+    exemplar_half = max(4, low // 12)  # 9 x 9 (Criminisi's size) up to 11 x 11 for 1 Mpx photos
     out = image.astype(np.float32)
     without_colour = np.zeros(fill_mask.shape, bool)
     for label in np.unique(region_map[fill_mask & (region_map >= 0)]):

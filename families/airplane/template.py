@@ -1,107 +1,169 @@
-"""Airplane templates: airliner, fighter and light aircraft seen from above.
+"""Airplane templates: airliner, fighter and light aircraft, top view, nose toward +Y.
 
-Canonical frame: nose toward +Y, wingspan along X, height along Z (the fin points to
-+Z). A round fuselage, thin wings with rounded leading and trailing edges, a tailplane,
-the fin as a ridge along the rear centre line, and engines below the wings (airliner)
-or at the nose (light aircraft) or as the intakes and nozzle (fighter).
+Wingspan runs along X and height along Z, the fin pointing to +Z. Real proportions
+in metres. The top view hides the height, so it comes from here: a fuselage of
+elliptic sections, thin lofted airfoil wings and tail surfaces, a fin standing on
+the fuselage, and engines touching the wing they hang from, so every ray along
+-Z crosses the plane once (no gap between a pod and its wing).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+from manifold3d import Manifold
 
 from frontal3d.family import Template
-from frontal3d.template_geometry import Canvas, height_field_template, rounded_profile, sd_box, sd_ellipse, sd_polygon, smooth_union
+from frontal3d.template_geometry import airfoil, centre_on_bounds, loft, union_labelled
 
 REGIONS = {subtype: ("fuselage", "wings", "tail", "engines") for subtype in ("airliner", "fighter", "light")}
 
-
-def _wing(span: float, root_y: tuple[float, float], tip_y: tuple[float, float], x_root: float = 0.0) -> list[tuple[float, float]]:
-    """A tapered, swept wing pair outline: root (leading y, trailing y) to tip (leading, trailing)."""
-    half = span / 2
-    return [
-        (-x_root, root_y[0]), (-half, tip_y[0]), (-half, tip_y[1]), (-x_root, root_y[1]),
-        (x_root, root_y[1]), (half, tip_y[1]), (half, tip_y[0]), (x_root, root_y[0]),
-    ]
+RING_POINTS = 48
+AIRFOIL_POINTS = 64
 
 
-def _fuselage(c: Canvas, length: float, radius: float, nose: float, tail: float) -> np.ndarray:
-    """Signed distance of a fuselage: a cylinder with an ogive nose and a tapering tail cone."""
-    y = c.y
-    half_width = np.full(c.shape, radius)
-    nose_start, tail_end = length / 2 - nose, -length / 2 + tail
-    in_nose = y > nose_start
-    half_width = np.where(in_nose, radius * np.sqrt(np.clip(1 - ((y - nose_start) / nose) ** 2, 0, 1)), half_width)
-    in_tail = y < tail_end
-    half_width = np.where(in_tail, radius * (0.25 + 0.75 * np.clip((y + length / 2) / tail, 0, 1)), half_width)
-    return np.maximum(np.abs(c.x) - half_width, np.abs(y) - length / 2)
+@dataclass(frozen=True)
+class Surface:
+    """A tapered, swept lifting surface: root at the centre line, ``span`` out to each tip.
+
+    ``rise`` is how much the tips sit above the root (dihedral), ``thickness`` the
+    airfoil thickness as a fraction of the chord.
+    """
+
+    root_leading_y: float
+    root_chord: float
+    tip_chord: float
+    span: float
+    sweep_y: float
+    z: float
+    rise: float = 0.0
+    thickness: float = 0.1
 
 
-def _assemble(subtype: str, c: Canvas, parts: dict[str, np.ndarray], radius: float, wing_half: float, wing_z: float, fin: tuple[float, float, float], engine_depth: tuple[float, float], landmarks: dict) -> Template:
-    """Label the parts and give each its height profile."""
-    fuselage_sd, wings_sd, tail_sd, engines_sd = parts["fuselage"], parts["wings"], parts["tail"], parts["engines"]
-    shape = smooth_union(smooth_union(fuselage_sd, np.minimum(wings_sd, tail_sd), radius * 0.3), engines_sd, radius * 0.1) < 0
-    labels = np.full(c.shape, -1, np.int32)
-    labels[shape] = 1
-    labels[shape & (tail_sd < 0)] = 2
-    labels[shape & (engines_sd < 0)] = 3
-    fuselage = shape & (fuselage_sd < radius * 0.05)
-    labels[fuselage] = 0
-    distance = c.distance_inside(shape)
-    # Thin lifting surfaces: half-thickness rounded toward every edge.
-    surface_half = rounded_profile(distance, wing_half, wing_half * 4)
-    front, back = wing_z + surface_half, wing_z - surface_half
-    # A round fuselage cross-section.
-    across = np.clip(-fuselage_sd / radius, 0, 1)
-    body_half = radius * np.sqrt(1 - (1 - across) ** 2)
-    front = np.where(fuselage, np.maximum(front, body_half), front)
-    back = np.where(fuselage, np.minimum(back, -body_half), back)
-    engines = shape & (engines_sd < 0) & ~fuselage
-    engine_top, engine_bottom = engine_depth
-    front = np.where(engines, np.maximum(front, engine_top), front)
-    back = np.where(engines, np.minimum(back, engine_bottom), back)
-    fin_y0, fin_y1, fin_height = fin
-    on_fin = fuselage & (np.abs(c.x) < 2.5 * c.pixel_size) & (c.y > fin_y0) & (c.y < fin_y1)
-    rise = np.clip((c.y - fin_y0) / (fin_y1 - fin_y0), 0, 1)
-    front = np.where(on_fin, np.maximum(front, radius + fin_height * np.sqrt(1 - rise)), front)
-    labels[on_fin] = 2
-    return height_field_template("airplane", subtype, c, labels, np.where(shape, front, 0), np.where(shape, back, 0), REGIONS[subtype], landmarks)
+def fuselage(stations: list[tuple[float, float, float, float]]) -> Manifold:
+    """A fuselage lofted through elliptic sections (y, centre z, half-width, half-height), tail to nose."""
+    angle = np.linspace(0.0, 2.0 * np.pi, RING_POINTS, endpoint=False)
+    return loft([
+        np.column_stack([a * np.cos(angle), np.full(RING_POINTS, y), z + b * np.sin(angle)]) for y, z, a, b in stations
+    ])
+
+
+def body_stations(nose_y: float, tail_y: float, half_width: float, half_height: float, nose_length: float,
+                  tail_length: float, tail_rise: float, tail_radius: float) -> list[tuple[float, float, float, float]]:
+    """Stations of a streamlined body: elliptic nose, straight middle, tail cone rising to the tail."""
+    stations = []
+    for t in np.linspace(0.0, 1.0, 10):
+        y = tail_y + t * tail_length
+        shrink = tail_radius / half_width + (1 - tail_radius / half_width) * np.sqrt(1 - (1 - t) ** 2)
+        stations.append((y, tail_rise * (1 - t), half_width * shrink, half_height * shrink))
+    for t in np.linspace(0.0, 1.0, 12)[1:]:
+        y = nose_y - nose_length * (1 - t)
+        shrink = max(np.sqrt(max(1 - t**2, 0.0)), 0.03)
+        stations.append((y, -0.1 * half_height * t, half_width * shrink, half_height * shrink))
+    return stations
+
+
+def wing(surface: Surface) -> Manifold:
+    """Both halves of a lifting surface as one loft from the left tip to the right tip."""
+    section = airfoil(AIRFOIL_POINTS, surface.thickness)
+    rings = []
+    for x in np.concatenate([np.linspace(-1.0, 0.0, 6), np.linspace(0.0, 1.0, 6)[1:]]):
+        reach = abs(x)
+        chord = surface.root_chord + (surface.tip_chord - surface.root_chord) * reach
+        leading_y = surface.root_leading_y - surface.sweep_y * reach
+        z = surface.z + surface.rise * reach
+        rings.append(np.column_stack([
+            np.full(AIRFOIL_POINTS, x * surface.span), leading_y - section[:, 0] * chord, z + section[:, 1] * chord,
+        ]))
+    return loft(rings)
+
+
+def fin(root_z: float, height: float, root_leading_y: float, root_chord: float, tip_chord: float, sweep_y: float,
+        thickness: float = 0.11) -> Manifold:
+    """A vertical fin rising along +Z from inside the fuselage."""
+    section = airfoil(AIRFOIL_POINTS, thickness)
+    rings = []
+    for t in np.linspace(0.0, 1.0, 6):
+        chord = root_chord + (tip_chord - root_chord) * t
+        leading_y = root_leading_y - sweep_y * t
+        rings.append(np.column_stack([section[:, 1] * chord, leading_y - section[:, 0] * chord, np.full(AIRFOIL_POINTS, root_z + height * t)]))
+    return loft(rings)
+
+
+def nacelle(x: float, y_front: float, length: float, z: float, radius: float) -> Manifold:
+    """An engine pod along Y: rounded intake lip, straight barrel, tapered exhaust."""
+    stations = [(y_front - length, z, 0.55 * radius, 0.55 * radius), (y_front - 0.75 * length, z, 0.9 * radius, 0.9 * radius)]
+    stations += [(y_front - 0.25 * length, z, radius, radius), (y_front - 0.05 * length, z, 0.97 * radius, 0.97 * radius)]
+    stations += [(y_front, z, 0.85 * radius, 0.85 * radius)]
+    pod = fuselage(stations)
+    return pod.translate((x, 0.0, 0.0))
+
+
+def _assemble(subtype: str, parts: list[tuple[Manifold, str]], landmarks: dict[str, tuple[float, float, float]]) -> Template:
+    regions = REGIONS[subtype]
+    mesh, labels = union_labelled([(solid, regions.index(region)) for solid, region in parts])
+    mesh, landmarks = centre_on_bounds(mesh, landmarks)
+    return Template(family="airplane", subtype=subtype, mesh=mesh, face_regions=labels, region_names=regions, landmarks=landmarks)
+
+
+def _tip(surface: Surface, side: float) -> tuple[float, float, float]:
+    """A landmark inside the tip section of a surface, at 40 % chord."""
+    return (side * 0.98 * surface.span, surface.root_leading_y - surface.sweep_y * 0.98 - 0.4 * surface.tip_chord, surface.z + 0.98 * surface.rise)
 
 
 def build_airliner() -> Template:
-    span, length, radius = 36.0, 38.0, 2.0
-    c = Canvas((-span / 2, span / 2), (-length / 2, length / 2))
-    wings = sd_polygon(c, _wing(span, (5.0, -3.5), (-6.5, -8.2), x_root=0.0), round_r=0.3)
-    tail = sd_polygon(c, _wing(12.5, (-13.5, -18.0), (-17.8, -19.3)), round_r=0.2)
-    engines = np.minimum(sd_box(c, -7.8, -5.0, -1.5, 4.0, round_r=1.2), sd_box(c, 5.0, 7.8, -1.5, 4.0, round_r=1.2))
-    parts = {"fuselage": _fuselage(c, length, radius, 5.0, 8.0), "wings": wings, "tail": tail, "engines": engines}
-    landmarks = {"nose": (0.0, 18.9, 0.0), "tail": (0.0, -18.9, 0.5), "wing_tip_left": (-17.8, -7.3, -0.9),
-                 "wing_tip_right": (17.8, -7.3, -0.9), "fin_tip": (0.0, -18.0, 8.5)}
-    return _assemble("airliner", c, parts, radius, 0.35, -0.9, (-18.5, -12.0, 7.0), (-0.3, -2.4), landmarks)
+    """A narrow-body twin jet: 38 m long, 35 m span, 4 m fuselage, low swept wing, podded engines."""
+    radius = 2.0
+    body = fuselage(body_stations(19.0, -19.0, radius, radius, 6.0, 11.0, 0.9, 0.35))
+    main = Surface(root_leading_y=3.5, root_chord=7.0, tip_chord=1.6, span=17.5, sweep_y=8.5, z=-0.2, rise=1.5, thickness=0.09)
+    stabiliser = Surface(root_leading_y=-13.5, root_chord=3.8, tip_chord=1.3, span=6.3, sweep_y=3.6, z=0.6, rise=0.4, thickness=0.1)
+    tail_fin = fin(0.5, 8.0, -11.5, 5.8, 1.8, 5.0)
+    engine_x = 5.8
+    engine_wing_z = main.z + main.rise * engine_x / main.span
+    engines = [nacelle(side * engine_x, 5.0, 6.0, engine_wing_z - 0.6, 1.05) for side in (-1.0, 1.0)]
+    parts = [(body, "fuselage"), (wing(main), "wings"), (wing(stabiliser), "tail"), (tail_fin, "tail")]
+    parts += [(engine, "engines") for engine in engines]
+    landmarks = {
+        "nose": (0.0, 18.9, -0.1), "tail": (0.0, -18.9, 0.9),
+        "wing_tip_left": _tip(main, -1.0), "wing_tip_right": _tip(main, 1.0),
+        "fin_tip": (0.0, -11.5 - 5.0 - 0.9, 8.3),
+    }
+    return _assemble("airliner", parts, landmarks)
 
 
 def build_fighter() -> Template:
-    span, length, radius = 12.0, 19.0, 1.1
-    c = Canvas((-span / 2, span / 2), (-length / 2, length / 2))
-    wings = sd_polygon(c, _wing(span, (2.5, -5.5), (-4.2, -6.0)), round_r=0.15)
-    tail = sd_polygon(c, _wing(8.0, (-6.5, -9.4), (-8.8, -9.6)), round_r=0.1)
-    engines = np.minimum(sd_box(c, -1.9, -0.6, -1.0, 3.8, round_r=0.4), sd_box(c, 0.6, 1.9, -1.0, 3.8, round_r=0.4))
-    parts = {"fuselage": _fuselage(c, length, radius, 5.5, 2.0), "wings": wings, "tail": tail, "engines": engines}
-    landmarks = {"nose": (0.0, 9.4, 0.0), "tail": (0.0, -9.4, 0.0), "wing_tip_left": (-5.9, -5.0, -0.1),
-                 "wing_tip_right": (5.9, -5.0, -0.1), "fin_tip": (0.0, -9.0, 4.0)}
-    return _assemble("fighter", c, parts, radius, 0.12, -0.1, (-9.4, -4.5, 3.2), (0.9, -0.9), landmarks)
+    """A single-engine fighter: 16 m long, 11 m span, blended fuselage with side intakes, swept wing."""
+    body = fuselage(body_stations(8.0, -8.0, 0.95, 0.55, 5.0, 3.0, 0.1, 0.5))
+    main = Surface(root_leading_y=2.5, root_chord=6.5, tip_chord=1.3, span=5.5, sweep_y=4.6, z=-0.05, thickness=0.035)
+    stabiliser = Surface(root_leading_y=-4.8, root_chord=2.8, tip_chord=1.0, span=3.0, sweep_y=1.9, z=0.0, thickness=0.05)
+    tail_fin = fin(0.3, 2.7, -3.8, 3.6, 1.2, 3.0, thickness=0.06)
+    intakes = [fuselage([(-5.5, -0.1, 0.5, 0.4), (-4.0, -0.1, 0.6, 0.45), (1.0, -0.1, 0.6, 0.45), (2.6, -0.1, 0.55, 0.4)]).translate((side * 0.9, 0.0, 0.0))
+               for side in (-1.0, 1.0)]
+    parts = [(body, "fuselage"), (wing(main), "wings"), (wing(stabiliser), "tail"), (tail_fin, "tail")]
+    parts += [(intake, "engines") for intake in intakes]
+    landmarks = {
+        "nose": (0.0, 7.9, -0.05), "tail": (0.0, -7.9, 0.1),
+        "wing_tip_left": _tip(main, -1.0), "wing_tip_right": _tip(main, 1.0),
+        "fin_tip": (0.0, -3.8 - 3.0 - 0.5, 2.9),
+    }
+    return _assemble("fighter", parts, landmarks)
 
 
 def build_light() -> Template:
-    span, length, radius = 11.0, 8.2, 0.6
-    c = Canvas((-span / 2, span / 2), (-length / 2, length / 2))
-    wings = sd_polygon(c, _wing(span, (1.6, 0.1), (1.4, 0.3)), round_r=0.15)
-    tail = sd_polygon(c, _wing(3.4, (-2.9, -4.0), (-3.3, -3.9)), round_r=0.1)
-    engines = sd_ellipse(c, 0.0, 3.5, 0.55, 0.65)
-    parts = {"fuselage": _fuselage(c, length, radius, 0.9, 3.0), "wings": wings, "tail": tail, "engines": engines}
-    landmarks = {"nose": (0.0, 4.05, 0.0), "tail": (0.0, -4.05, 0.2), "wing_tip_left": (-5.45, 0.9, 0.55),
-                 "wing_tip_right": (5.45, 0.9, 0.55), "fin_tip": (0.0, -3.9, 1.8)}
-    return _assemble("light", c, parts, radius, 0.1, 0.55, (-4.1, -2.6, 1.3), (0.6, -0.6), landmarks)
+    """A high-wing single-prop light aircraft: 8.3 m long, 11 m span, engine cowling at the nose."""
+    body = fuselage(body_stations(3.0, -4.6, 0.58, 0.72, 2.2, 4.4, 0.25, 0.12))
+    cowling = fuselage([(1.9, -0.05, 0.5, 0.55), (2.6, -0.1, 0.56, 0.6), (3.7, -0.15, 0.45, 0.45), (4.15, -0.15, 0.12, 0.12)])
+    main = Surface(root_leading_y=1.3, root_chord=1.6, tip_chord=1.2, span=5.5, sweep_y=0.2, z=0.05, rise=0.1, thickness=0.12)
+    stabiliser = Surface(root_leading_y=-3.2, root_chord=1.25, tip_chord=0.8, span=1.7, sweep_y=0.3, z=0.25, thickness=0.09)
+    tail_fin = fin(0.2, 1.35, -2.9, 1.5, 0.7, 0.9)
+    parts = [(body, "fuselage"), (cowling, "engines"), (wing(main), "wings"), (wing(stabiliser), "tail"), (tail_fin, "tail")]
+    landmarks = {
+        "nose": (0.0, 4.1, -0.15), "tail": (0.0, -4.55, 0.25),
+        "wing_tip_left": _tip(main, -1.0), "wing_tip_right": _tip(main, 1.0),
+        "fin_tip": (0.0, -2.9 - 0.9 - 0.3, 1.5),
+    }
+    return _assemble("light", parts, landmarks)
 
 
 BUILDERS = {"airliner": build_airliner, "fighter": build_fighter, "light": build_light}

@@ -1,0 +1,128 @@
+"""Training-free classifier chain: frontal gate and subtype choice by silhouette agreement."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+import trimesh
+
+from frontal3d.family import Family, Template
+from frontal3d.render import TemplateRenders, render_template
+from frontal3d.stages.classify import ClassifierContext, FrontalGate, SubtypeClassifier, silhouette_agreement
+
+FAMILY = Family(name="guitar", subtypes=("classical", "electric"), canonical_view="front",
+                regions={"classical": ("body", "hole"), "electric": ("body",)},
+                real_size={"classical": 1.0, "electric": 1.0},
+                view_hint="a front view of the guitar's face")
+SETTINGS = {"max_angle_deg": 180.0, "frontal_threshold": 0.45}
+
+
+def _guitar_like_mesh() -> trimesh.Trimesh:
+    """An electric-guitar-like slab: elliptic body (0.4 x 0.5 x 0.05 m) with a neck box above it."""
+    body = trimesh.creation.cylinder(radius=0.5, height=0.05, sections=64)
+    body.apply_scale([0.4, 0.5, 1.0])
+    body.apply_translation([0.0, -0.25, 0.0])
+    neck = trimesh.creation.box(extents=[0.06, 0.55, 0.04])
+    neck.apply_translation([0.0, 0.27, 0.0])
+    return trimesh.util.concatenate([body, neck])
+
+
+def _render(mesh: trimesh.Trimesh, yaw_deg: float = 0.0) -> TemplateRenders:
+    mesh = mesh.copy()
+    mesh.apply_transform(trimesh.transformations.rotation_matrix(np.deg2rad(yaw_deg), [0, 1, 0]))
+    template = Template("guitar", "electric", mesh, np.zeros(len(mesh.faces)), ("body",))
+    return render_template(template, 160)
+
+
+def _renders_from_masks(mask: np.ndarray, regions: np.ndarray, names: tuple[str, ...]) -> TemplateRenders:
+    """Flat-depth renders made straight from 2D maps, enough for the silhouette classifiers."""
+    depth = np.where(mask, 0.01, np.nan).astype(np.float32)
+    normals = np.zeros(mask.shape + (3,), np.float32)
+    normals[mask, 2] = 1.0
+    return TemplateRenders((0.0, 0.0), 0.5, mask, depth, -depth, normals, -normals, regions, regions, names)
+
+
+def _context(object_mask: np.ndarray, renders: dict[str, TemplateRenders], image: np.ndarray | None = None) -> ClassifierContext:
+    if image is None:
+        image = np.where(object_mask[..., None], 160, 230).astype(np.uint8).repeat(3, axis=2)
+    return ClassifierContext(image=image, object_mask=object_mask, family=FAMILY, renders=renders, settings=SETTINGS)
+
+
+def _placed(mask: np.ndarray, shape: tuple[int, int], scale: float, angle_deg: float) -> np.ndarray:
+    """``mask`` scaled, turned in the image plane and centred in a ``shape`` image."""
+    centre = ((mask.shape[1] - 1) / 2, (mask.shape[0] - 1) / 2)
+    matrix = cv2.getRotationMatrix2D(centre, angle_deg, scale)
+    matrix[:, 2] += ((shape[1] - 1) / 2 - centre[0], (shape[0] - 1) / 2 - centre[1])
+    return cv2.warpAffine(mask.astype(np.uint8), matrix, (shape[1], shape[0]), flags=cv2.INTER_NEAREST) > 0
+
+
+@pytest.fixture(scope="module")
+def guitar_like() -> dict[str, TemplateRenders]:
+    mesh = _guitar_like_mesh()
+    return {"frontal": _render(mesh), "turned": _render(mesh, 60.0)}
+
+
+def test_gate_accepts_a_frontal_view_even_scaled_and_tilted(guitar_like):
+    template = {"electric": guitar_like["frontal"]}
+    photo = _placed(guitar_like["frontal"].mask, (300, 260), 1.6, 25.0)
+    decision = FrontalGate().classify(_context(photo, template))
+    assert decision.accepted and decision.label == "frontal"
+    assert decision.confidence > 0.9
+
+
+def test_gate_rejects_the_same_object_turned_60_degrees_with_a_reason(guitar_like):
+    template = {"electric": guitar_like["frontal"]}
+    photo = _placed(guitar_like["turned"].mask, (300, 260), 1.6, 0.0)
+    decision = FrontalGate().classify(_context(photo, template))
+    assert not decision.accepted
+    assert "guitar" in decision.reason and "front view" in decision.reason and "<" in decision.reason
+
+
+def test_agreement_similarity_places_the_template_on_the_object(guitar_like):
+    render = guitar_like["frontal"]
+    photo = _placed(render.mask, (320, 280), 1.5, 0.0)
+    agreement = silhouette_agreement(photo, {"electric": render}, np.pi)["electric"]
+    assert agreement.iou > 0.9
+    assert agreement.similarity.scale == pytest.approx(1.5, rel=0.05)
+    landed = cv2.warpAffine(render.mask.astype(np.uint8), agreement.similarity.matrix, (280, 320), flags=cv2.INTER_NEAREST) > 0
+    assert (landed & photo).sum() / (landed | photo).sum() > 0.9
+
+
+def test_subtype_picks_the_matching_one_of_two_clearly_different_shapes():
+    size = 128
+    disc = np.zeros((size, size), np.uint8)
+    cv2.circle(disc, (64, 64), 50, 1, -1)
+    bar = np.zeros((size, size), np.uint8)
+    cv2.rectangle(bar, (54, 8), (74, 120), 1, -1)
+    renders = {
+        "round": _renders_from_masks(disc > 0, np.where(disc > 0, 0, -1).astype(np.int32), ("body",)),
+        "long": _renders_from_masks(bar > 0, np.where(bar > 0, 0, -1).astype(np.int32), ("body",)),
+    }
+    photo = _placed(bar > 0, (240, 240), 1.7, 30.0)
+    decision = SubtypeClassifier().classify(_context(photo, renders))
+    assert decision.label == "long" and decision.runner_up == "round"
+    assert decision.confidence > 0.9 and decision.runner_up_confidence < 0.1
+
+
+def test_a_dark_sound_hole_decides_between_two_equal_silhouettes():
+    size = 160
+    body = np.zeros((size, size), np.uint8)
+    cv2.ellipse(body, (80, 95), (55, 60), 0, 0, 360, 1, -1)
+    cv2.rectangle(body, (74, 5), (86, 60), 1, -1)
+    mask = body > 0
+    hole = np.zeros_like(body)
+    cv2.circle(hole, (80, 75), 16, 1, -1)
+    with_hole = np.where(mask, 0, -1).astype(np.int32)
+    with_hole[hole > 0] = 1
+    renders = {
+        "classical": _renders_from_masks(mask, with_hole, ("body", "hole")),
+        "electric": _renders_from_masks(mask, np.where(mask, 0, -1).astype(np.int32), ("body",)),
+    }
+    photo_mask = _placed(mask, (320, 320), 1.8, 0.0)
+    plain = np.where(photo_mask[..., None], np.array([190, 130, 70]), 235).astype(np.uint8)
+    assert SubtypeClassifier().classify(_context(photo_mask, renders, plain)).label == "electric"
+    holed = plain.copy()
+    cv2.circle(holed, (160, 160 + round(1.8 * (75 - 79.5))), round(1.8 * 16), (25, 20, 15), -1)
+    decision = SubtypeClassifier().classify(_context(photo_mask, renders, holed))
+    assert decision.label == "classical" and decision.runner_up == "electric"
