@@ -8,6 +8,8 @@ from __future__ import annotations
 import json
 import resource
 import statistics
+import tempfile
+import time
 from pathlib import Path
 
 from frontal3d.examples import example_image
@@ -16,13 +18,18 @@ from frontal3d.plugins import Plugins
 
 
 def run_bench(plugins: Plugins, image: Path | None, family: str, mask: Path | None, repeat: int, as_json: bool = False) -> int:
-    """Reconstruct ``image`` ``repeat`` times (the first run warms caches) and print a table."""
+    """Reconstruct and export ``image`` ``repeat`` times (the first run warms caches) and print a table."""
     if image is None:
         image, family = example_image(), "car" if family == "auto" else family
     runs = []
-    for _ in range(max(1, repeat)):
-        result = reconstruct(image, family, mask=mask, plugins=plugins)
-        runs.append(result.report)
+    with tempfile.TemporaryDirectory() as scratch:
+        for run in range(max(1, repeat)):
+            result = reconstruct(image, family, mask=mask, plugins=plugins)
+            start = time.perf_counter()
+            result.save(Path(scratch) / str(run))
+            result.report["stages"]["export"] = round(time.perf_counter() - start, 4)
+            result.report["peak_memory_mb"]["export"] = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
+            runs.append(result.report)
     stages = list(runs[-1]["stages"])
     timed = runs[1:] if len(runs) > 1 else runs
     table = {

@@ -11,7 +11,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from frontal3d import hookimpl
+from frontal3d import hookimpl, learned, occluders
 from frontal3d.back_rules import BUILTIN_BACK_RULES
 from frontal3d.family import Family
 from frontal3d.stages import classify, mesh, regions, segment
@@ -33,7 +33,8 @@ def classical_segmenter(image: np.ndarray, family: Family, settings: dict[str, A
 
 @hookimpl
 def frontal3d_classifiers(family: Family) -> list[classify.Classifier]:
-    return [classify.FrontalGate(), classify.SubtypeClassifier()]
+    """The frontal gate and subtype classifier: learned ones where the family's ``weights`` name a checkpoint."""
+    return [learned.WeightsOrDefault(classify.FrontalGate()), learned.WeightsOrDefault(classify.SubtypeClassifier())]
 
 
 @hookimpl(trylast=True)
@@ -53,3 +54,9 @@ def frontal3d_symmetry_rules() -> dict[str, Callable[..., tuple[np.ndarray, np.n
         "none": lambda front_z, back_z, mask, region_map, params: (front_z, back_z),
         "mirror_z": lambda front_z, back_z, mask, region_map, params: mesh.apply_symmetry(front_z, back_z, mask, "mirror_z"),
     }
+
+
+@hookimpl
+def frontal3d_occluders(image: np.ndarray, object_mask: np.ndarray, settings: dict[str, Any]) -> np.ndarray | None:
+    """People's arms and hands in front of the object (needs mediapipe; without it, none)."""
+    return occluders.detect_arms_and_hands(image)

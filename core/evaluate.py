@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import csv
 import json
-import math
 import statistics
 import time
 import traceback
@@ -47,6 +46,8 @@ from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from frontal3d.errors import InputError
+from frontal3d.photo_render import frontal_camera
+from frontal3d.photo_render import render_frontal as photo_render_frontal
 
 #: Resolution and side of the voxel grid the paper's IoU uses (normalized units).
 VOXEL_RESOLUTION = 128
@@ -230,33 +231,12 @@ def render_frontal(mesh: trimesh.Trimesh, resolution: int = RENDER_RESOLUTION) -
     """Orthographic render along -Z: (RGB uint8 image, bool mask, camera dict).
 
     Same camera as the shared renders: centred at the bbox centre, longest X/Y extent =
-    90 % of the frame, one ray per pixel centre. Shading is Lambert on a grey base with
-    flat normals turned to the camera (0.15 ambient + 0.65 camera light + 0.25 upper-left).
+    90 % of the frame, one ray per pixel centre, Lambert shading (``frontal3d.photo_render``).
     """
     _check_mesh(mesh, "ground-truth")
-    lo, hi = mesh.bounds
-    center = 0.5 * (lo[:2] + hi[:2])
-    half_width = 0.5 * float(np.max(hi[:2] - lo[:2])) / RENDER_FILL
-    pixel = 2.0 * half_width / resolution
-    cols = center[0] - half_width + (np.arange(resolution) + 0.5) * pixel
-    rows = center[1] + half_width - (np.arange(resolution) + 0.5) * pixel
-    x, y = np.meshgrid(cols, rows)
-    origins = np.stack([x, y, np.full_like(x, hi[2] + 1.0)], axis=-1)
-    directions = np.broadcast_to(np.array([0.0, 0.0, -1.0]), origins.shape)
-    rays = o3d.core.Tensor(np.concatenate([origins, directions], axis=-1).astype(np.float32))
-
-    scene = o3d.t.geometry.RaycastingScene()
-    scene.add_triangles(o3d.core.Tensor(mesh.vertices.astype(np.float32)), o3d.core.Tensor(mesh.faces.astype(np.uint32)))
-    hit = scene.cast_rays(rays)
-    mask = np.isfinite(hit["t_hit"].numpy())
-    normals = hit["primitive_normals"].numpy()
-    normals = normals * np.where(normals[..., 2:3] < 0, -1.0, 1.0)
-    upper_left = np.array([-1.0, 1.0, 1.0]) / math.sqrt(3.0)
-    shade = 0.15 + 0.65 * normals[..., 2] + 0.25 * np.clip(normals @ upper_left, 0.0, None)
-    grey = np.clip(0.8 * shade * mask, 0.0, 1.0)
-    image = np.repeat((grey * 255).astype(np.uint8)[..., None], 3, axis=-1)
-    camera = {"center": center.tolist(), "half_width": half_width, "resolution": [resolution, resolution]}
-    return image, mask, camera
+    camera = frontal_camera(mesh, resolution, RENDER_FILL)
+    rgba = photo_render_frontal(mesh, camera)
+    return np.ascontiguousarray(rgba[..., :3]), rgba[..., 3] > 0, camera
 
 
 def _load_render(renders_dir: Path, mesh_id: str) -> tuple[np.ndarray, np.ndarray, dict]:

@@ -181,7 +181,10 @@ def _reconstruct_shape_and_texture(
     with report.stage("occlusion", progress):
         occluders = occlusion.find_occluders(plugins, rgb, object_mask, settings, user_occluders)
         work_occluders = _to_working(occluders.astype(np.uint8), crop, cv2.INTER_NEAREST) > 0 if occluders is not None else np.zeros_like(work_mask)
-        rebuilt = occlusion.rebuild_silhouette(work_mask, work_occluders, aligned_template_mask)
+        rebuilt = occlusion.rebuild_silhouette(
+            work_mask, work_occluders, aligned_template_mask,
+            k=int(settings["boundary_k"]) or boundary.default_k(max(work_mask.shape)),
+        )
         work_mask, occluded = rebuilt.mask, rebuilt.occluded
         report.data["occlusion"] = rebuilt.summary()
         maps["occlusion_mask"] = occluded
@@ -198,13 +201,17 @@ def _reconstruct_shape_and_texture(
 
     with report.stage("boundary", progress):
         k = int(settings["boundary_k"]) or boundary.default_k(max(work_mask.shape))
-        input_contour = boundary.trace_contour(_joined(work_mask))
-        template_contour = similarity.apply(boundary.trace_contour(renders.mask))
+        # Both outlines on the working grid, pieces joined the same way on both sides.
+        join = _pieces(work_mask) > 1 or _pieces(aligned_template_mask) > 1
+        input_contour = boundary.trace_contour(_joined(work_mask) if join else work_mask)
+        template_contour = boundary.trace_contour(_joined(aligned_template_mask) if join else aligned_template_mask).astype(np.float64)
         omega = boundary.match_contours(input_contour, template_contour, k)
         template_regions_img = align.warp_labels(renders.front_regions, similarity, work_mask.shape)
         region_k = int(settings["region_k"])
-        omega = boundary.match_regions(regions, template_regions_img, input_contour, template_contour, omega, K=region_k)
+        refined = boundary.match_regions(regions, template_regions_img, input_contour, template_contour, omega, K=region_k)
+        omega = _guarded_refinement(input_contour, template_contour, omega, refined, work_mask.shape)
         inner_in, inner_tpl = boundary.region_pivots(regions, template_regions_img, K=region_k)
+        inner_in, inner_tpl = _consistent_pivots(input_contour, template_contour[omega], inner_in, inner_tpl, work_mask.shape)
         out_pivots = np.concatenate([input_contour, inner_in])
         src_pivots = np.concatenate([template_contour[omega], inner_tpl])
         report.data["boundary"] = {"k": k, "contour_points": int(len(input_contour)), "region_pivots": int(len(inner_in))}
@@ -235,7 +242,7 @@ def _reconstruct_shape_and_texture(
         )
         if result.dropped_pixels:
             report.warn(f"{result.dropped_pixels} one-pixel pinch or isolated pixel(s) dropped from the silhouette to keep the mesh closed")
-        landmarks = _warp_landmarks(renders, similarity, warped, relative_scale, pixel_size)
+        landmarks = _warp_landmarks(renders, warped, relative_scale, result, pixel_size)
         maps.update(front_depth=front_z, back_depth=back_z)
 
     with report.stage("texture", progress):
@@ -353,8 +360,48 @@ def _load_optional_mask(mask: np.ndarray | str | Path | None, shape: tuple[int, 
     return mask
 
 
+def _guarded_refinement(input_contour: np.ndarray, template_contour: np.ndarray, omega: np.ndarray, refined: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """The per-region refinement of the outline matching, where it does not go astray.
+
+    Region matches move a point's partner along the template outline so parts line up
+    (a neck on the neck); a refined partner farther than 2 % of the object's size beyond
+    the global one is a region mismatch (seen on thin airplane tails), so that point
+    keeps its global partner.
+    """
+    tolerance = max(2.0, 0.02 * max(shape))
+    global_distance = np.linalg.norm(input_contour - template_contour[omega], axis=1)
+    refined_distance = np.linalg.norm(input_contour - template_contour[refined], axis=1)
+    return np.where(refined_distance <= global_distance + tolerance, refined, omega)
+
+
+def _consistent_pivots(outline_in: np.ndarray, outline_tpl: np.ndarray, inner_in: np.ndarray, inner_tpl: np.ndarray, shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Keep the inner region-boundary pivots that agree with the outline's warp.
+
+    Region boundaries refine the warp locally (paper 3.2.4); a pair the per-region
+    matching got wrong (a left wing matched to the right one) would tear the map, so a
+    pair survives only when its template point lies within 2 % of the object's size of
+    where the outline-only warp (evaluated coarsely) already sends its input point.
+    """
+    if len(inner_in) == 0:
+        return inner_in, inner_tpl
+    coarse = warp.mls_inverse_map(outline_in, outline_tpl, shape, grid_step=8)
+    cols = np.clip(np.rint(inner_in[:, 0]).astype(int), 0, shape[1] - 1)
+    rows = np.clip(np.rint(inner_in[:, 1]).astype(int), 0, shape[0] - 1)
+    tolerance = max(2.0, 0.02 * max(shape))
+    keep = np.linalg.norm(coarse[rows, cols] - inner_tpl, axis=1) <= tolerance
+    return inner_in[keep], inner_tpl[keep]
+
+
+def _pieces(mask: np.ndarray) -> int:
+    return cv2.connectedComponents(mask.astype(np.uint8), connectivity=8)[0] - 1
+
+
 def _joined(mask: np.ndarray) -> np.ndarray:
-    """The mask closed just enough to join nearby pieces, so one outline traces the object."""
+    """The mask closed just enough to join nearby pieces, so one outline traces the object.
+
+    Used on the object and the aligned template alike (closing also fills notches, so
+    both outlines must be traced the same way), only when either is in pieces.
+    """
     ys, xs = np.nonzero(mask)
     radius = max(1, int(0.04 * max(np.ptp(ys), np.ptp(xs))))
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
@@ -400,15 +447,24 @@ def _shade(normals: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return np.where(mask, grey, 0).astype(np.uint8)
 
 
-def _warp_landmarks(renders: TemplateRenders, similarity: align.Similarity, warped: warp.WarpResult, relative_scale: np.ndarray, pixel_size: float) -> dict[str, np.ndarray]:
-    """Send each template landmark through the warp: the output pixel whose source is nearest."""
+def _warp_landmarks(renders: TemplateRenders, warped: warp.WarpResult, relative_scale: np.ndarray, meshed: mesh.MeshResult, pixel_size: float) -> dict[str, np.ndarray]:
+    """Send each template landmark through the warp: to the meshed pixel whose source is
+    nearest, at the template's depth scaled like the surface there, kept between that
+    pixel's back and front vertices so it stays on or inside the (smoothed) mesh.
+    """
+    vertices = np.asarray(meshed.mesh.vertices)
+    front = meshed.vertex_side == 0
+    front_pixels = np.rint(meshed.vertex_pixel[front]).astype(int)
+    front_index = np.flatnonzero(front)
+    back_of = {tuple(p): i for p, i in zip(np.rint(meshed.vertex_pixel[~front]).astype(int), np.flatnonzero(~front))}
+    sources = warped.source_coords[front_pixels[:, 1], front_pixels[:, 0]]
     landmarks = {}
-    inside = np.argwhere(warped.mask)
-    sources = warped.source_coords[warped.mask]
     for name, position in renders.landmarks.items():
-        px = renders.world_to_pixel(position[:2])
-        row, col = inside[np.argmin(np.sum((sources - px) ** 2, axis=1))]
-        z = float(position[2]) * float(relative_scale[row, col])
+        nearest = int(np.argmin(np.sum((sources - renders.world_to_pixel(position[:2])) ** 2, axis=1)))
+        col, row = front_pixels[nearest]
+        front_z = vertices[front_index[nearest], 2]
+        back_z = vertices[back_of[(col, row)], 2]
+        z = float(np.clip(position[2] * relative_scale[row, col], back_z, front_z))
         landmarks[name] = np.array([(col + 0.5) * pixel_size, -(row + 0.5) * pixel_size, z])
     return landmarks
 

@@ -241,3 +241,29 @@ def centre_on_bounds(mesh: trimesh.Trimesh, landmarks: dict[str, np.ndarray]) ->
     shift = -0.5 * (mesh.bounds[0] + mesh.bounds[1])
     moved = trimesh.Trimesh(vertices=mesh.vertices + shift, faces=mesh.faces, process=False)
     return moved, {name: np.asarray(point, dtype=np.float64) + shift for name, point in landmarks.items()}
+
+
+def taper_depth(
+    mesh: trimesh.Trimesh, landmarks: dict[str, np.ndarray], y_start: float, y_end: float, end_factor: float
+) -> tuple[trimesh.Trimesh, dict[str, np.ndarray]]:
+    """Scale Z by a factor rising linearly from 1 at ``y_start`` to ``end_factor`` at ``y_end``.
+
+    Real bodies are rarely equally deep everywhere (an acoustic guitar is deeper at the
+    tail than at the neck). Scaling Z about Z = 0 by a positive factor that depends on Y
+    only keeps every ray along -Z crossing the solid once, so the template stays valid
+    and watertight; outside [y_start, y_end] the factor is clamped (1 before, end after).
+    """
+    if not end_factor > 0 or y_start == y_end:
+        raise TemplateError(f"depth taper needs a positive factor and distinct ends, got {end_factor}, {y_start}..{y_end}")
+
+    def factor(y: np.ndarray) -> np.ndarray:
+        return 1.0 + (end_factor - 1.0) * np.clip((y - y_start) / (y_end - y_start), 0.0, 1.0)
+
+    vertices = np.array(mesh.vertices, dtype=np.float64)
+    vertices[:, 2] *= factor(vertices[:, 1])
+    tapered = {}
+    for name, point in landmarks.items():
+        point = np.array(point, dtype=np.float64)
+        point[2] *= factor(point[1])
+        tapered[name] = point
+    return trimesh.Trimesh(vertices=vertices, faces=mesh.faces, process=False), tapered

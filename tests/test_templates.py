@@ -5,6 +5,10 @@ from __future__ import annotations
 import numpy as np
 import open3d as o3d
 import pytest
+import trimesh
+
+from frontal3d.errors import TemplateError
+from frontal3d.template_geometry import taper_depth
 
 from frontal3d_airplane.template import BUILDERS as AIRPLANE_BUILDERS
 from frontal3d_airplane.template import REGIONS as AIRPLANE_REGIONS
@@ -26,7 +30,7 @@ LANDMARKS = {
 }
 # Bounding-box size (x, y, z) in metres: (low, high) per axis, from real objects.
 SIZES = {
-    ("guitar", "classical"): ((0.33, 0.42), (0.95, 1.05), (0.08, 0.12)),
+    ("guitar", "classical"): ((0.33, 0.42), (0.95, 1.05), (0.09, 0.14)),
     ("guitar", "electric"): ((0.28, 0.38), (0.95, 1.05), (0.035, 0.06)),
     ("car", "sedan"): ((4.3, 5.1), (1.3, 1.55), (1.7, 1.95)),
     ("car", "suv"): ((4.2, 5.0), (1.6, 1.95), (1.75, 2.0)),
@@ -163,6 +167,37 @@ def test_guitar_depths_and_sound_hole() -> None:
     assert classical.mesh.euler_number == 2
     assert classical.landmarks["nut"][1] > classical.landmarks["bridge_center"][1]
     assert electric.mesh.extents[2] < 0.6 * classical.mesh.extents[2]
+
+
+def body_depth_at(mesh, y: float) -> float:
+    """Depth of the solid along Z through the centre line at height ``y``."""
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(o3d.core.Tensor(np.asarray(mesh.vertices, np.float32)), o3d.core.Tensor(np.asarray(mesh.faces, np.uint32)))
+    start = mesh.bounds[1][2] + 1.0
+    down = scene.cast_rays(o3d.core.Tensor(np.array([[0.01, y, start, 0, 0, -1]], np.float32)))["t_hit"].numpy()[0]
+    up = scene.cast_rays(o3d.core.Tensor(np.array([[0.01, y, -start, 0, 0, 1]], np.float32)))["t_hit"].numpy()[0]
+    return 2 * start - down - up
+
+
+def test_acoustic_body_is_deeper_at_the_tail_than_at_the_neck() -> None:
+    mesh = template("guitar", "classical").mesh
+    low, high = mesh.bounds
+    near_neck = body_depth_at(mesh, low[1] + 0.43)  # between the neck heel and the sound hole
+    near_tail = body_depth_at(mesh, low[1] + 0.06)
+    assert 0.09 < near_neck < near_tail < 0.13
+    assert near_tail > 1.1 * near_neck
+
+
+def test_taper_depth_keeps_the_solid_closed_and_scales_only_z() -> None:
+    box = trimesh.creation.box(extents=(1.0, 2.0, 0.2))
+    marks = {"top": np.array([0.0, -1.0, 0.1])}
+    tapered, moved = taper_depth(box, marks, y_start=1.0, y_end=-1.0, end_factor=1.5)
+    assert tapered.is_watertight and tapered.volume > 0
+    assert np.allclose(tapered.vertices[:, :2], box.vertices[:, :2])
+    assert np.isclose(tapered.vertices[:, 2].max(), 0.15) and np.isclose(moved["top"][2], 0.15)
+    assert np.isclose(tapered.volume, box.volume * 1.25)
+    with pytest.raises(TemplateError):
+        taper_depth(box, marks, y_start=0.0, y_end=0.0, end_factor=1.5)
 
 
 def test_airplane_fin_points_up_and_wings_are_thin() -> None:

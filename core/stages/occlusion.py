@@ -1,35 +1,65 @@
 """Occlusions: things in front of the object, and the silhouette and regions behind them.
 
-Paper section 3.2.3. Occluder masks come from the ``frontal3d_occluders`` hook (every
-plugin's masks are OR-ed) and from the user's ``--occluder-mask``. The occluded part of
-the silhouette is rebuilt from the aligned template; the region map is then completed
-over it so the texture stage can inpaint each region from itself.
+Paper section 3.2.3 (Figs. 5-7). Occluder masks come from the ``frontal3d_occluders``
+hook (every plugin's masks are OR-ed; the core's default finds people's arms and
+hands) and from the user's ``--occluder-mask``. The object's boundary where an
+occluder covers it is replaced by the matching part of the aligned template's
+contour, bent to meet the visible boundary at both ends; the region map is then
+completed over the rebuilt mask so the texture stage can inpaint each region from itself.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import cv2
 import numpy as np
-
+from frontal3d.stages.boundary import default_k, match_contours, trace_contour
 from frontal3d.stages.regions import reconstruct_region_map
+from scipy.ndimage import binary_fill_holes
+
+#: Reach of an occluder, as a fraction of the image's long side: template pixels this
+#: close to an occluder may join the silhouette, and object boundary this close to one
+#: counts as occluded (its true course is unknown there).
+OCCLUDER_REACH = 0.02
+#: Occluded boundary runs separated by fewer visible points than this are one part.
+MIN_VISIBLE_GAP = 4
+
+
+@dataclass
+class BoundaryPart:
+    """One rebuilt stretch of the silhouette: its visible end points (x, y) and lengths in pixels."""
+
+    start: tuple[float, float]
+    end: tuple[float, float]
+    occluded_length: int
+    rebuilt_length: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "start": [round(v, 1) for v in self.start],
+            "end": [round(v, 1) for v in self.end],
+            "occluded_length_px": self.occluded_length,
+            "rebuilt_length_px": round(self.rebuilt_length, 1),
+        }
 
 
 @dataclass
 class RebuiltSilhouette:
-    """The object's mask with occluded parts restored, and which pixels were occluded."""
+    """The object's mask with occluded parts restored, which pixels were occluded, and the rebuilt boundary parts."""
 
     mask: np.ndarray
     occluded: np.ndarray
     original_area: int
+    boundary_parts: list[BoundaryPart] = field(default_factory=list)
 
     def summary(self) -> dict[str, Any]:
         area = int(self.mask.sum())
         return {
             "occluded_fraction": round(float(self.occluded.sum()) / max(area, 1), 4),
             "restored_pixels": int(area - self.original_area),
+            "rebuilt_boundary_parts": [part.to_dict() for part in self.boundary_parts],
         }
 
 
@@ -44,26 +74,128 @@ def find_occluders(plugins: Any, image: np.ndarray, object_mask: np.ndarray, set
     return combined if combined.any() else None
 
 
-def rebuild_silhouette(object_mask: np.ndarray, occluders: np.ndarray, aligned_template_mask: np.ndarray) -> RebuiltSilhouette:
+def rebuild_silhouette(object_mask: np.ndarray, occluders: np.ndarray, aligned_template_mask: np.ndarray, *, k: int | None = None) -> RebuiltSilhouette:
     """Restore the silhouette where occluders cover it, using the aligned template.
 
-    Where an occluder overlaps the aligned template, the object continues behind it:
-    those pixels join the mask, which is then closed so bites along the boundary fill.
+    1. Fill: the object plus the aligned template near the occluders, closed and with
+       holes filled, so a bite or a cut through the object becomes one outline.
+    2. The outline's points within reach of an occluder form occluded parts; the
+       outline is matched to the template's (eq. 1-2, jump bound ``k``, default
+       :func:`default_k`), and each part is replaced by the template stretch matched
+       between its two visible end points, moved by the similarity that sends the
+       template's end points onto them (the paper's procedure).
+    3. The closed outline is filled and the visible object added back; the occluded
+       pixels are the rebuilt mask's pixels under the occluders.
     """
-    if not occluders.any():
-        return RebuiltSilhouette(object_mask, np.zeros_like(object_mask), int(object_mask.sum()))
-    size = max(3, int(round(0.02 * max(object_mask.shape))) | 1)
-    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size))
-    near_object = cv2.dilate(object_mask.astype(np.uint8), kernel) > 0
-    behind = occluders & aligned_template_mask & (near_object | object_mask)
-    restored = object_mask | behind
-    restored = cv2.morphologyEx(restored.astype(np.uint8), cv2.MORPH_CLOSE, kernel) > 0
-    restored &= object_mask | aligned_template_mask
-    occluded = restored & occluders
-    return RebuiltSilhouette(restored, occluded, int(object_mask.sum()))
+    object_mask = np.asarray(object_mask, dtype=bool)
+    occluders = np.asarray(occluders, dtype=bool)
+    aligned_template_mask = np.asarray(aligned_template_mask, dtype=bool)
+    original_area = int(object_mask.sum())
+    kernel = _disc(max(1, round(OCCLUDER_REACH * max(object_mask.shape))))
+    reach = cv2.dilate(occluders.astype(np.uint8), kernel) > 0
+    if not (reach & object_mask).any():
+        return RebuiltSilhouette(object_mask, np.zeros_like(object_mask), original_area)
+
+    visible = object_mask & ~occluders
+    filled = _filled(visible, reach & aligned_template_mask, kernel)
+    contour = trace_contour(filled)
+    parts = _occluded_runs(_values_at(reach, contour))
+    rebuilt_parts: list[BoundaryPart] = []
+    if parts and aligned_template_mask.any():
+        template_contour = trace_contour(aligned_template_mask)
+        omega = match_contours(contour, template_contour, k or default_k(max(object_mask.shape)))
+        contour, rebuilt_parts = _replace_parts(contour, template_contour, omega, parts)
+        outline = np.zeros(object_mask.shape, np.uint8)
+        cv2.fillPoly(outline, [np.round(contour).astype(np.int32)], 1)
+        filled = binary_fill_holes((outline > 0) | visible)
+    # One pixel of slack: the occluder's anti-aliased edge must be inpainted too.
+    occluded = filled & (cv2.dilate(occluders.astype(np.uint8), _disc(1)) > 0)
+    return RebuiltSilhouette(filled, occluded, original_area, rebuilt_parts)
 
 
 def rebuild_regions(regions: np.ndarray, object_mask: np.ndarray, occluded: np.ndarray, n_regions: int) -> np.ndarray:
     """Give every pixel of the (rebuilt) mask a region, filling occluded ones from neighbours."""
     needs_fill = object_mask & ((regions < 0) | occluded)
     return reconstruct_region_map(np.where(object_mask, regions, -1), object_mask, needs_fill)
+
+
+def _disc(radius: int) -> np.ndarray:
+    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
+
+
+def _filled(visible: np.ndarray, template_near_occluders: np.ndarray, kernel: np.ndarray) -> np.ndarray:
+    """Visible object plus the template pieces under occluders that touch it, closed and hole-free (paper Fig. 5)."""
+    _count, pieces = cv2.connectedComponents(template_near_occluders.astype(np.uint8))
+    touching = np.unique(pieces[(cv2.dilate(visible.astype(np.uint8), _disc(1)) > 0) & (pieces > 0)])
+    joined = visible | np.isin(pieces, touching)
+    closed = cv2.morphologyEx(joined.astype(np.uint8), cv2.MORPH_CLOSE, kernel) > 0
+    return binary_fill_holes(closed)
+
+
+def _values_at(mask: np.ndarray, points: np.ndarray) -> np.ndarray:
+    cols, rows = np.round(points).astype(np.intp).T
+    return mask[rows, cols]
+
+
+def _occluded_runs(occluded: np.ndarray) -> list[tuple[int, int]]:
+    """Cyclic runs [first, last] of occluded contour points, gaps shorter than MIN_VISIBLE_GAP bridged.
+
+    A run needs a visible point on each side (its end points); a fully occluded outline has none.
+    """
+    m = len(occluded)
+    if occluded.all() or not occluded.any():
+        return []
+    shift = int(np.argmin(occluded))  # start the walk on a visible point, so no run wraps
+    flags = np.roll(occluded, -shift).astype(np.int8)
+    edges = np.diff(np.concatenate([[0], flags, [0]]))
+    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    runs: list[list[int]] = []
+    for start, stop in zip(starts, stops):
+        if runs and start - runs[-1][1] < MIN_VISIBLE_GAP:
+            runs[-1][1] = stop
+        else:
+            runs.append([start, stop])
+    if len(runs) > 1 and (m - runs[-1][1]) + runs[0][0] < MIN_VISIBLE_GAP:
+        runs[0][0] = runs.pop()[0] - m
+    return [((start + shift) % m, (stop - 1 + shift) % m) for start, stop in runs]
+
+
+def _replace_parts(contour: np.ndarray, template_contour: np.ndarray, omega: np.ndarray,
+                   parts: list[tuple[int, int]]) -> tuple[np.ndarray, list[BoundaryPart]]:
+    """The outline with each occluded part swapped for its matched, end-point-fitted template stretch."""
+    m, n = len(contour), len(template_contour)
+    pieces, rebuilt = [], []
+    visible_from = (parts[-1][1] + 1) % m
+    for first, last in parts:
+        before, after = (first - 1) % m, (last + 1) % m
+        pieces.append(contour[_cyclic_range(visible_from, before, m)])
+        start_point, end_point = contour[before], contour[after]
+        stretch = template_contour[_cyclic_range(omega[before], omega[after], n)]
+        fitted = _fit_between(stretch, start_point, end_point)
+        pieces.append(fitted[1:-1])
+        rebuilt.append(BoundaryPart(
+            start=(float(start_point[0]), float(start_point[1])),
+            end=(float(end_point[0]), float(end_point[1])),
+            occluded_length=int((last - first) % m + 1),
+            rebuilt_length=float(np.linalg.norm(np.diff(fitted, axis=0), axis=1).sum()),
+        ))
+        visible_from = after
+    return np.concatenate(pieces), rebuilt
+
+
+def _cyclic_range(first: int, last: int, length: int) -> np.ndarray:
+    """Indices first, first + 1, ..., last, wrapping around a cycle of ``length``."""
+    return (first + np.arange((last - first) % length + 1)) % length
+
+
+def _fit_between(stretch: np.ndarray, start: np.ndarray, end: np.ndarray) -> np.ndarray:
+    """The similarity sending the stretch's end points onto ``start`` and ``end``, applied to it.
+
+    A stretch whose ends coincide (the match collapsed) is only translated; the
+    straight gap to ``end`` then closes when the outline is filled.
+    """
+    z = stretch[:, 0] + 1j * stretch[:, 1]
+    a, b = z[0], z[-1]
+    p, q = complex(*start), complex(*end)
+    moved = p + (z - a) * ((q - p) / (b - a)) if abs(b - a) >= 1.0 else z + (p - a)
+    return np.stack([moved.real, moved.imag], axis=1)

@@ -31,10 +31,17 @@ COLOUR_SMOOTHING = 1.0
 UNIFORM_SHARE = 0.02
 
 
-def reconstruct_region_map(region_map: np.ndarray, object_mask: np.ndarray, fill_mask: np.ndarray) -> np.ndarray:
-    """Give every object pixel one region: one connected component per region, gaps filled.
+#: A region's piece at least this fraction of its largest piece is a real part (the
+#: other wing), not a speck to clean away.
+MAIN_PIECE_FRACTION = 0.25
 
-    Keeps the largest component of each region; pixels of smaller components, pixels
+
+def reconstruct_region_map(region_map: np.ndarray, object_mask: np.ndarray, fill_mask: np.ndarray) -> np.ndarray:
+    """Give every object pixel one region: each region's main pieces kept, gaps filled.
+
+    Keeps each region's main components (the largest, and any at least
+    :data:`MAIN_PIECE_FRACTION` of it: an airplane's two wings are one region in two
+    pieces); pixels of smaller components, pixels
     in ``fill_mask`` (occluded) and unlabelled object pixels are filled by
     alpha-expansion with distance-to-region unaries (the paper's "distance-based graph
     cuts regularization"). Outside the object the map is -1.
@@ -47,9 +54,7 @@ def reconstruct_region_map(region_map: np.ndarray, object_mask: np.ndarray, fill
     if not labels:
         return np.where(object_mask, 0, -1).astype(np.int32)
     for label in labels:
-        region = (region_map == label) & object_mask & ~fill_mask
-        count, components, stats, _ = cv2.connectedComponentsWithStats(region.astype(np.uint8), connectivity=4)
-        kept[components == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))] = label
+        kept[_main_pieces((region_map == label) & object_mask & ~fill_mask)] = label
     todo = object_mask & (kept < 0)
     if not todo.any():
         return kept
@@ -57,8 +62,8 @@ def reconstruct_region_map(region_map: np.ndarray, object_mask: np.ndarray, fill
     unary = np.where(todo[..., None], distances, np.where(kept[..., None] == np.array(labels), 0.0, _FORBIDDEN))
     solved = _alpha_expansion(unary, object_mask, smoothness=2.0)
     result = np.where(object_mask, np.array(labels)[np.maximum(solved, 0)], -1)
-    # A filled gap can touch a region only through its small parts; keep one component each.
-    return _largest_components(result.astype(np.int32), object_mask, labels)
+    # A filled gap can touch a region only through its small parts; keep the main pieces.
+    return _main_pieces_only(result.astype(np.int32), object_mask, labels)
 
 
 def refine_regions(
@@ -127,13 +132,20 @@ def _distance_to(region: np.ndarray) -> np.ndarray:
     return cv2.distanceTransform((~region).astype(np.uint8), cv2.DIST_L2, 5).astype(np.float64)
 
 
-def _largest_components(region_map: np.ndarray, object_mask: np.ndarray, labels: list[int]) -> np.ndarray:
-    """Drop all but each label's largest component, then give the dropped pixels their nearest kept label."""
+def _main_pieces(region: np.ndarray) -> np.ndarray:
+    """The region's largest component and every component at least MAIN_PIECE_FRACTION of it."""
+    count, components, stats, _ = cv2.connectedComponentsWithStats(region.astype(np.uint8), connectivity=4)
+    if count <= 1:
+        return np.zeros(region.shape, bool)
+    areas = stats[1:, cv2.CC_STAT_AREA]
+    return np.isin(components, 1 + np.flatnonzero(areas >= MAIN_PIECE_FRACTION * areas.max()))
+
+
+def _main_pieces_only(region_map: np.ndarray, object_mask: np.ndarray, labels: list[int]) -> np.ndarray:
+    """Drop each label's small pieces, then give the dropped pixels their nearest kept label."""
     kept = np.full(region_map.shape, -1, np.int32)
     for label in labels:
-        count, components, stats, _ = cv2.connectedComponentsWithStats((region_map == label).astype(np.uint8), connectivity=4)
-        if count > 1:
-            kept[components == 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))] = label
+        kept[_main_pieces(region_map == label)] = label
     orphans = object_mask & (kept < 0)
     if orphans.any():
         _, nearest = cv2.distanceTransformWithLabels((kept < 0).astype(np.uint8), cv2.DIST_L2, 5, labelType=cv2.DIST_LABEL_PIXEL)

@@ -11,7 +11,6 @@ textured mesh is no longer watertight and a closed copy is kept beside it.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 

@@ -2,8 +2,8 @@
 
 Real proportions in metres (overall length about 1 m). The Z profile is what a
 reconstruction inherits, so it follows real guitars: a flat-topped, flat-backed
-body (classical 10 cm deep, electric 4.5 cm), edges rounded over a few
-centimetres, a neck whose fretboard stands just above the top and a thinner
+body (acoustic 10 cm deep at the neck and 12 cm at the tail, electric 4.5 cm),
+edges rounded over a few centimetres, a neck whose fretboard stands just above the top and a thinner
 headstock. The classical sound hole is a shallow blind recess (the template stays
 one closed solid); the electric's bridge, pickups and controls are painted
 regions on a flat face, as the paper asks for no small details (section 3.2.1).
@@ -23,6 +23,7 @@ from frontal3d.template_geometry import (
     prism,
     rounded_polygon,
     rounded_slab,
+    taper_depth,
     union_labelled,
 )
 
@@ -33,6 +34,8 @@ REGIONS = {
 
 TOP_Y = 0.5
 BOTTOM_Y = -0.5
+#: Depth of the acoustic body at its tail end (it is 10 cm where the neck joins).
+ACOUSTIC_TAIL_DEPTH = 0.12
 
 
 def _neck(top_z: float, y_low: float, y_nut: float, width_low: float, width_nut: float) -> Manifold:
@@ -54,7 +57,11 @@ def _head(top_z: float, y_low: float, width: float, thickness: float) -> Manifol
 
 
 def build_classical() -> Template:
-    """A classical (nylon-string) guitar: 1.0 m long, figure-eight body 0.37 m wide, 0.10 m deep."""
+    """An acoustic guitar: 1.0 m long, figure-eight body 0.37 m wide, 10 cm deep at the neck, 12 at the tail.
+
+    The depth covers both classical (about 10 cm) and steel-string guitars (dreadnoughts
+    grow from 10 to 12.5 cm toward the tail), which a front view cannot tell apart.
+    """
     regions = REGIONS["classical"]
     depth = 0.10
     top_z = depth / 2
@@ -89,6 +96,7 @@ def build_classical() -> Template:
         "bridge_center": (0.0, bridge_y, top_z + 0.008),
         "headstock_tip": (0.0, TOP_Y - 0.002, top_z - 0.013),
     }
+    mesh, landmarks = taper_depth(mesh, landmarks, body_top_y, BOTTOM_Y, ACOUSTIC_TAIL_DEPTH / depth)
     mesh, landmarks = centre_on_bounds(mesh, landmarks)
     return Template(family="guitar", subtype="classical", mesh=mesh, face_regions=labels, region_names=regions, landmarks=landmarks)
 

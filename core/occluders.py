@@ -1,0 +1,140 @@
+"""People's arms and hands in front of the object: the default occluder detector (paper 3.2.3, Fig. 5).
+
+The paper combines a human-parsing segmentation (PGN) with DensePose's arm and hand
+parts. We use the offline models shipped in the mediapipe wheel for the same roles:
+selfie segmentation gives the person's silhouette, the pose landmarks give the arms
+(a band around shoulder-elbow-wrist-hand, intersected with the silhouette), and the
+hand detector finds hands on their own, for close-ups that show a hand but no body.
+
+mediapipe is optional (scripts/setup.sh installs it): it is imported on first use,
+because importing it takes about a second, and without it the detector logs a warning
+and finds nothing.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any
+
+import cv2
+import numpy as np
+
+log = logging.getLogger("frontal3d")
+
+#: Long side (px) the models see; they work at 256 px internally, more only costs time.
+DETECTION_SIDE = 512
+#: Selfie-segmentation probability above which a pixel belongs to a person.
+PERSON_PROBABILITY = 0.5
+#: Share of the image that must be confidently (p > 0.9) a person before the pose model
+#: runs: images without people skip its cost (about 1 s to load, 20 ms a call). Hands are
+#: looked for on every image, as a close-up hand is often not segmented as a person.
+MIN_CONFIDENT_PERSON_SHARE = 0.002
+#: Pose landmarks with at least this visibility draw arm segments.
+MIN_VISIBILITY = 0.5
+#: Arm band width as a fraction of the shoulder-to-shoulder distance (or of the upper arm's length).
+ARM_BAND_WIDTH = 0.45
+#: Hands: the landmarks' hull is grown by this fraction of the hand's size (landmarks sit on the joints).
+HAND_MARGIN = 0.15
+
+#: mediapipe pose landmark indices, per side: shoulder, elbow, wrist, then the hand points
+#: (pinky, index, thumb) attached to the wrist.
+_ARM_CHAINS = ((11, 13, 15), (12, 14, 16))
+_HAND_POINTS = {15: (17, 19, 21), 16: (18, 20, 22)}
+
+
+@dataclass
+class _Models:
+    segmenter: Any
+    pose: Any
+    hands: Any
+
+
+def detect_arms_and_hands(image: np.ndarray) -> np.ndarray | None:
+    """Bool mask (image-sized) of people's arms and hands, or None if there are none.
+
+    None too when mediapipe is not installed (with a logged warning), so a missing
+    optional dependency degrades to "no occluders", never to a crash.
+    """
+    models = _load_models()
+    if models is None:
+        return None
+    rgb = np.ascontiguousarray(image[..., :3], dtype=np.uint8)
+    height, width = rgb.shape[:2]
+    scale = min(1.0, DETECTION_SIDE / max(height, width))
+    small = cv2.resize(rgb, (max(1, round(width * scale)), max(1, round(height * scale))), interpolation=cv2.INTER_AREA) if scale < 1.0 else rgb
+    probability = models.segmenter.process(small).segmentation_mask
+    person = probability > PERSON_PROBABILITY
+    found = _hand_mask(models.hands.process(small), person)
+    if (probability > 0.9).mean() >= MIN_CONFIDENT_PERSON_SHARE:
+        found |= _arm_band(models.pose.process(small), small.shape[:2]) & person
+    if not found.any():
+        return None
+    return cv2.resize(found.astype(np.uint8), (width, height), interpolation=cv2.INTER_NEAREST) > 0
+
+
+@lru_cache(maxsize=1)
+def _load_models() -> _Models | None:
+    """The three mediapipe solutions, built once per process; None if mediapipe is missing."""
+    try:
+        from mediapipe.python.solutions import hands, pose, selfie_segmentation
+    except ImportError as exc:
+        log.warning("occluder detection is off: mediapipe is not installed (%s); run scripts/setup.sh", exc)
+        return None
+    return _Models(
+        segmenter=selfie_segmentation.SelfieSegmentation(model_selection=0),
+        # Other complexities download their model at run time; 1 ships in the wheel.
+        pose=pose.Pose(static_image_mode=True, model_complexity=1),
+        hands=hands.Hands(static_image_mode=True, max_num_hands=4),
+    )
+
+
+def _arm_band(pose_result: Any, shape: tuple[int, int]) -> np.ndarray:
+    """Thick lines along each visible arm chain (shoulder-elbow-wrist-hand points)."""
+    band = np.zeros(shape, np.uint8)
+    if pose_result.pose_landmarks is None:
+        return band > 0
+    landmarks = pose_result.pose_landmarks.landmark
+    points = np.array([(lm.x * shape[1], lm.y * shape[0]) for lm in landmarks])
+    visible = np.array([lm.visibility > MIN_VISIBILITY for lm in landmarks])
+    width = _arm_width(points, visible)
+    for chain in _ARM_CHAINS:
+        segments = list(itertools.pairwise(chain)) + [(chain[-1], tip) for tip in _HAND_POINTS[chain[-1]]]
+        for start, end in segments:
+            if visible[start] and visible[end]:
+                cv2.line(band, _pixel(points[start]), _pixel(points[end]), 1, thickness=width)
+    return band > 0
+
+
+def _arm_width(points: np.ndarray, visible: np.ndarray) -> int:
+    """Band thickness from the body's size: shoulder width, else the longest visible upper arm."""
+    if visible[11] and visible[12]:
+        reference = np.linalg.norm(points[11] - points[12])
+    else:
+        upper_arms = [np.linalg.norm(points[s] - points[e]) for s, e, _ in _ARM_CHAINS if visible[s] and visible[e]]
+        reference = max(upper_arms, default=0.0)
+    return max(3, round(ARM_BAND_WIDTH * reference))
+
+
+def _hand_mask(hands_result: Any, person: np.ndarray) -> np.ndarray:
+    """Each detected hand's landmark hull, grown to the hand's outline.
+
+    Cut to the person's silhouette where the silhouette covers the hand; a lone hand
+    in a close-up is often missed by the person segmenter, and then the hull stands alone.
+    """
+    found = np.zeros(person.shape, bool)
+    for hand in hands_result.multi_hand_landmarks or []:
+        points = np.array([(lm.x * person.shape[1], lm.y * person.shape[0]) for lm in hand.landmark])
+        hull = np.zeros(person.shape, np.uint8)
+        cv2.fillConvexPoly(hull, cv2.convexHull(np.round(points).astype(np.int32)), 1)
+        margin = max(1, round(HAND_MARGIN * np.ptp(points, axis=0).max()))
+        grown = cv2.dilate(hull, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * margin + 1, 2 * margin + 1))) > 0
+        on_person = grown & person
+        found |= on_person if on_person.sum() > 0.5 * hull.sum() else grown
+    return found
+
+
+def _pixel(point: np.ndarray) -> tuple[int, int]:
+    return round(point[0]), round(point[1])

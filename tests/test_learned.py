@@ -1,0 +1,171 @@
+"""Learned classifiers made by the project's own commands: synth data, training, checkpoints, the chain."""
+
+from __future__ import annotations
+
+import csv
+
+import cv2
+import numpy as np
+import pytest
+import torch
+
+from frontal3d.cli import main
+from frontal3d.errors import ConfigError
+from frontal3d.learned import load_classifier
+from frontal3d.pipeline import reconstruct
+from frontal3d.plugins import Plugins
+from frontal3d.stages.classify import ClassifierContext, FrontalGate, SubtypeClassifier
+from frontal3d.synth import FRONTAL_LIMIT_DEG, TURNED_RANGE_DEG
+
+
+def _synth(out, count: int, seed: int = 5, resolution: int = 64) -> None:
+    assert main(["synth", "--family", "car", "-n", str(count), "-o", str(out), "--seed", str(seed), "--resolution", str(resolution)]) == 0
+
+
+def _rows(folder) -> list[dict[str, str]]:
+    with (folder / "labels.csv").open(newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    """A tiny car data set and one-epoch gate and subtype checkpoints trained on it."""
+    root = tmp_path_factory.mktemp("learned")
+    data = root / "data"
+    _synth(data, 18, resolution=96)
+    gate, subtype = root / "gate.pt", root / "subtype.pt"
+    assert main(["train", "frontal", "--data", str(data), "-o", str(gate), "--epochs", "1"]) == 0
+    assert main(["train", "subtype", "--data", str(data), "-o", str(subtype), "--epochs", "1"]) == 0
+    return {"data": data, "gate": gate, "subtype": subtype, "root": root}
+
+
+def _sample(data, index: int) -> tuple[np.ndarray, np.ndarray]:
+    name = f"{index:06d}.png"
+    image = cv2.cvtColor(cv2.imread(str(data / "images" / name)), cv2.COLOR_BGR2RGB)
+    return image, cv2.imread(str(data / "masks" / name), cv2.IMREAD_GRAYSCALE) > 0
+
+
+def test_synth_writes_consistent_images_masks_regions_and_labels_deterministically(tmp_path):
+    first, second = tmp_path / "a", tmp_path / "b"
+    _synth(first, 6)
+    _synth(second, 6)
+    rows = _rows(first)
+    assert [row["file"] for row in rows] == [f"{i:06d}.png" for i in range(6)]
+    assert {row["subtype"] for row in rows} == {"sedan", "suv", "sports"} and {row["family"] for row in rows} == {"car"}
+    for row in rows:
+        name = row["file"]
+        image = cv2.imread(str(first / "images" / name))
+        mask = cv2.imread(str(first / "masks" / name), cv2.IMREAD_GRAYSCALE) > 0
+        regions = cv2.imread(str(first / "regions" / name), cv2.IMREAD_GRAYSCALE)
+        assert image.shape == (64, 64, 3) and 0.02 < mask.mean() < 0.95
+        np.testing.assert_array_equal(regions > 0, mask)  # region index + 1 exactly on the object
+        assert regions.max() <= 4  # body, windows, wheels, lights
+        largest_turn = max(abs(float(row["yaw"])), abs(float(row["pitch"])))
+        if row["frontal"] == "1":
+            assert largest_turn <= FRONTAL_LIMIT_DEG
+        else:
+            assert TURNED_RANGE_DEG[0] <= largest_turn <= TURNED_RANGE_DEG[1]
+        for folder in ("images", "masks", "regions"):
+            assert (first / folder / name).read_bytes() == (second / folder / name).read_bytes()
+    assert (first / "labels.csv").read_text() == (second / "labels.csv").read_text()
+    _synth(tmp_path / "c", 6, seed=6)
+    assert (tmp_path / "c" / "images" / "000000.png").read_bytes() != (first / "images" / "000000.png").read_bytes()
+
+
+def test_trained_checkpoint_loads_and_reproduces_its_stored_prediction(trained):
+    stored = torch.load(trained["subtype"], weights_only=True)
+    model = load_classifier(trained["subtype"], "subtype", Plugins().family("car"))
+    assert model.classes == ["sedan", "sports", "suv"] and model.task == "subtype" and model.family == "car"
+    np.testing.assert_allclose(model.probabilities_of_crop(stored["reference_input"].numpy()), stored["reference_probabilities"], atol=1e-5)
+    image, mask = _sample(trained["data"], 0)
+    label, confidence, runner_up, runner_up_confidence = model.predict(image, mask)
+    assert label in model.classes and runner_up in model.classes and label != runner_up
+    assert 1.0 >= confidence >= runner_up_confidence >= 0.0
+    assert load_classifier(trained["subtype"]).predict(image, mask) == (label, confidence, runner_up, runner_up_confidence)
+
+
+def _one_line_config_error(path, task="subtype", family="car") -> str:
+    with pytest.raises(ConfigError) as info:
+        load_classifier(path, task, Plugins().family(family))
+    message = str(info.value)
+    assert "\n" not in message and str(path) in message
+    return message
+
+
+def test_missing_corrupt_truncated_and_mismatched_checkpoints_give_one_line_errors(trained, tmp_path):
+    assert "not found" in _one_line_config_error(tmp_path / "nope.pt")
+    garbage = tmp_path / "garbage.pt"
+    garbage.write_bytes(np.random.default_rng(0).bytes(5000))
+    assert "not a readable frontal3d checkpoint" in _one_line_config_error(garbage)
+    truncated = tmp_path / "truncated.pt"
+    content = trained["subtype"].read_bytes()
+    truncated.write_bytes(content[: len(content) // 2])
+    assert "not a readable frontal3d checkpoint" in _one_line_config_error(truncated)
+    other = tmp_path / "other.pt"
+    torch.save({"weights": torch.zeros(3)}, other)
+    assert "not a frontal3d checkpoint" in _one_line_config_error(other)
+
+    assert "classifies 'frontal'" in _one_line_config_error(trained["gate"], task="subtype")
+    assert "trained for family 'car', not 'guitar'" in _one_line_config_error(trained["subtype"], family="guitar")
+    checkpoint = torch.load(trained["subtype"], weights_only=True)
+    wrong_classes = tmp_path / "classes.pt"
+    torch.save({**checkpoint, "classes": ["sedan", "suv", "truck"]}, wrong_classes)
+    assert "do not match the car family's subtypes" in _one_line_config_error(wrong_classes)
+    damaged = tmp_path / "damaged.pt"
+    state = {k: (v + 0.5 if v.is_floating_point() else v) for k, v in checkpoint["state_dict"].items()}
+    torch.save({**checkpoint, "state_dict": state}, damaged)
+    assert "no longer reproduces" in _one_line_config_error(damaged)
+
+
+def test_cli_reports_bad_weights_on_one_line(trained, tmp_path, capsys):
+    image = tmp_path / "car.png"
+    sample, mask = _sample(trained["data"], 0)
+    cv2.imwrite(str(image), np.dstack([sample[..., ::-1], mask.astype(np.uint8) * 255]))
+    code = main(["reconstruct", str(image), "--family", "car", "-o", str(tmp_path / "out"), "--set", f'weights={{subtype = "{trained["gate"]}"}}'])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code != 0 and len(err) == 1 and "classifies 'frontal'" in err[0]
+
+
+def _context(plugins: Plugins, image: np.ndarray, mask: np.ndarray, weights: dict[str, str]) -> ClassifierContext:
+    from frontal3d.pipeline import _renders
+
+    family = plugins.family("car")
+    settings = plugins.settings("car", {"weights": weights, "template_resolution": 128})
+    renders = {s: _renders(plugins, family, s, settings) for s in family.subtypes}
+    return ClassifierContext(image=image, object_mask=mask, family=family, renders=renders, settings=settings)
+
+
+def test_chain_has_one_classifier_per_name_and_uses_the_learned_one_only_with_weights(trained):
+    plugins = Plugins()
+    classifiers = [c for group in plugins.hook.frontal3d_classifiers(family=plugins.family("car")) for c in group]
+    names = [c.name for c in classifiers]
+    assert names.count("frontal") == 1 and names.count("subtype") == 1
+    image, mask = _sample(trained["data"], 0)
+    by_name = {c.name: c for c in classifiers}
+
+    plain = _context(plugins, image, mask, {})
+    assert by_name["frontal"].classify(plain) == FrontalGate().classify(plain)
+    assert by_name["subtype"].classify(plain) == SubtypeClassifier().classify(plain)
+
+    weighted = _context(plugins, image, mask, {"frontal": str(trained["gate"]), "subtype": str(trained["subtype"])})
+    gate = by_name["frontal"].classify(weighted)
+    probabilities = load_classifier(trained["gate"]).probabilities(image, mask)
+    assert gate.confidence == pytest.approx(probabilities[1]) and gate.accepted == (probabilities[1] >= 0.5)
+    assert "learned model gate.pt" in gate.reason
+    subtype = by_name["subtype"].classify(weighted)
+    expected = load_classifier(trained["subtype"]).predict(image, mask)
+    assert (subtype.label, subtype.confidence, subtype.runner_up) == pytest.approx(expected[:3])
+    assert "learned model subtype.pt" in subtype.reason
+
+
+def test_reconstruction_reports_the_learned_decision_with_its_confidence(trained):
+    frontal_index = next(i for i, row in enumerate(_rows(trained["data"])) if row["frontal"] == "1")
+    image, mask = _sample(trained["data"], frontal_index)
+    rgba = np.dstack([image, mask.astype(np.uint8) * 255])
+    # Threshold 0 lets the training-free gate pass any view: this test is about the subtype decision.
+    result = reconstruct(rgba, "car", weights={"subtype": str(trained["subtype"])}, frontal_threshold=0.0,
+                         working_resolution=96, template_resolution=128)
+    decision = next(d for d in result.report["decisions"] if d["name"] == "subtype")
+    label, confidence, _, _ = load_classifier(trained["subtype"]).predict(rgba[..., :3], mask)
+    assert decision["label"] == label == result.report["subtype"]
+    assert decision["confidence"] == pytest.approx(confidence, abs=1e-4) and "learned model" in decision["reason"]

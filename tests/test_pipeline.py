@@ -1,0 +1,120 @@
+"""The whole pipeline as a user runs it: photo in, watertight textured mesh and report out."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+import frontal3d
+from frontal3d.cli import main
+from frontal3d.errors import NotFrontalError
+from frontal3d.evaluate import voxel_iou
+from frontal3d.photo_render import frontal_camera, render_frontal
+from frontal3d.plugins import Plugins
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "sportscar.png"
+
+
+@pytest.fixture(scope="module")
+def plugins() -> Plugins:
+    return Plugins()
+
+
+def _template_photo(plugins: Plugins, family: str, subtype: str, rotate_y_deg: float = 0.0, resolution: int = 320):
+    """A render of a built-in template, coloured by region, as the input photo."""
+    fam = plugins.family(family)
+    template = plugins.hook.frontal3d_template(family=fam, subtype=subtype, settings=plugins.settings(family))
+    mesh = template.mesh.copy()
+    palette = np.array([[200, 60, 40, 255], [40, 40, 60, 255], [30, 30, 30, 255], [230, 200, 60, 255], [90, 160, 90, 255], [60, 90, 200, 255]], np.uint8)
+    mesh.visual = trimesh.visual.ColorVisuals(mesh, face_colors=palette[template.face_regions % len(palette)])
+    if rotate_y_deg:
+        mesh.apply_transform(trimesh.transformations.rotation_matrix(np.deg2rad(rotate_y_deg), [0, 1, 0]))
+    rgba = render_frontal(mesh, frontal_camera(mesh, resolution, 0.8))
+    return rgba, template
+
+
+def _silhouette(mesh: trimesh.Trimesh, like: np.ndarray) -> np.ndarray:
+    """The mesh's frontal silhouette, rendered on a grid fitted to its own bounds."""
+    return render_frontal(mesh, frontal_camera(mesh, max(like.shape), 0.8))[..., 3] > 0
+
+
+def test_template_reconstructed_from_its_own_render_matches_itself(plugins):
+    rgba, template = _template_photo(plugins, "car", "sedan")
+    result = frontal3d.reconstruct(rgba, "car", subtype="sedan", plugins=plugins)
+    assert result.mesh.is_watertight and result.mesh.is_winding_consistent and result.mesh.volume > 0
+    assert voxel_iou(result.mesh, template.mesh) > 0.9
+    assert result.report["subtype"] == "sedan"
+    assert result.report["segmenter"] == "alpha channel"
+
+
+def test_silhouette_of_the_mesh_matches_the_input_mask(plugins):
+    rgba, _ = _template_photo(plugins, "guitar", "electric")
+    result = frontal3d.reconstruct(rgba, "guitar", plugins=plugins)
+    mask = rgba[..., 3] > 0
+    ys, xs = np.nonzero(mask)
+    cropped = mask[ys.min() : ys.max() + 1, xs.min() : xs.max() + 1]
+    rendered = _silhouette(result.mesh, cropped)
+    ys, xs = np.nonzero(rendered)
+    rendered = rendered[ys.min() : ys.max() + 1, xs.min() : xs.max() + 1]
+    import cv2
+
+    rendered = cv2.resize(rendered.astype(np.uint8), cropped.shape[::-1], interpolation=cv2.INTER_NEAREST) > 0
+    iou = (rendered & cropped).sum() / (rendered | cropped).sum()
+    assert iou > 0.95
+    assert result.report["subtype"] == "electric"
+
+
+def test_mask_with_a_hole_and_a_separate_blob(plugins):
+    """A frame-shaped object (hole in the mask) plus a far-away object: closed mesh of the largest."""
+    image = np.full((300, 400, 3), 235, np.uint8)
+    mask = np.zeros((300, 400), bool)
+    mask[40:160, 20:240] = True
+    mask[70:130, 70:210] = False  # the hole
+    mask[220:295, 300:395] = True  # a separate object, far away
+    image[mask] = (150, 40, 40)
+    result = frontal3d.reconstruct(image, "car", mask=mask, subtype="sedan", plugins=plugins, frontal_threshold=0.0)
+    assert result.mesh.is_watertight
+    assert result.mesh.euler_number == 0  # one through-hole: genus 1
+    assert any("2 separate objects" in w for w in result.report["warnings"])
+    assert not any("touches the image border" in w for w in result.report["warnings"])
+
+
+def test_side_on_view_is_rejected_with_a_reason(plugins):
+    rgba, _ = _template_photo(plugins, "car", "sedan", rotate_y_deg=90)
+    with pytest.raises(NotFrontalError, match="side view"):
+        frontal3d.reconstruct(rgba, "car", plugins=plugins)
+
+
+def test_report_names_every_stage_and_decision(plugins):
+    rgba, _ = _template_photo(plugins, "airplane", "airliner")
+    result = frontal3d.reconstruct(rgba, "airplane", plugins=plugins)
+    report = result.report
+    for stage in ("segment", "classify", "align", "occlusion", "regions", "boundary", "warp", "mesh", "texture"):
+        assert stage in report["stages"]
+    names = [d["name"] for d in report["decisions"]]
+    assert names == ["frontal", "subtype"]
+    assert report["decisions"][1]["runner_up"] is not None
+    assert report["mesh"]["watertight"]
+    assert set(result.landmarks) == {"nose", "tail", "wing_tip_left", "wing_tip_right", "fin_tip"}
+    lo, hi = result.mesh.bounds
+    for position in result.landmarks.values():
+        assert np.all(position >= lo - 1e-6) and np.all(position <= hi + 1e-6)
+
+
+def test_cli_reconstructs_the_bundled_example(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["reconstruct", str(EXAMPLE), "--family", "auto", "-o", str(out)]) == 0
+    folder = out / "sportscar"
+    for name in ("model.glb", "model.obj", "model.mtl", "texture.png", "preview.png", "report.json"):
+        assert (folder / name).is_file(), name
+    report = json.loads((folder / "report.json").read_text())
+    assert report["family"] == "car"
+    assert report["mesh"]["watertight"]
+    loaded = trimesh.load(folder / "model.glb", force="scene")
+    node_names = set(loaded.graph.nodes)
+    assert {"wheel_front_left", "wheel_rear_right"} <= node_names
+    assert [p for p in tmp_path.iterdir()] == [out]  # no staging folder left behind
