@@ -15,6 +15,10 @@ from __future__ import annotations
 
 import itertools
 import logging
+import os
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
@@ -61,6 +65,11 @@ def detect_arms_and_hands(image: np.ndarray) -> np.ndarray | None:
     models = _load_models()
     if models is None:
         return None
+    with _native_logs_silenced():
+        return _detect(models, image)
+
+
+def _detect(models: _Models, image: np.ndarray) -> np.ndarray | None:
     rgb = np.ascontiguousarray(image[..., :3], dtype=np.uint8)
     height, width = rgb.shape[:2]
     scale = min(1.0, DETECTION_SIDE / max(height, width))
@@ -75,20 +84,38 @@ def detect_arms_and_hands(image: np.ndarray) -> np.ndarray | None:
     return cv2.resize(found.astype(np.uint8), (width, height), interpolation=cv2.INTER_NEAREST) > 0
 
 
+@contextmanager
+def _native_logs_silenced() -> Iterator[None]:
+    """Mute what mediapipe's C++ core writes to stderr (TensorFlow Lite and glog chatter
+    on every model load and inference), which would bury frontal3d's own messages."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(devnull)
+        os.close(saved)
+
+
 @lru_cache(maxsize=1)
 def _load_models() -> _Models | None:
     """The three mediapipe solutions, built once per process; None if mediapipe is missing."""
+    os.environ.setdefault("GLOG_minloglevel", "2")  # before mediapipe starts its C++ logging
     try:
         from mediapipe.python.solutions import hands, pose, selfie_segmentation
     except ImportError as exc:
         log.warning("occluder detection is off: mediapipe is not installed (%s); run scripts/setup.sh", exc)
         return None
-    return _Models(
-        segmenter=selfie_segmentation.SelfieSegmentation(model_selection=0),
-        # Other complexities download their model at run time; 1 ships in the wheel.
-        pose=pose.Pose(static_image_mode=True, model_complexity=1),
-        hands=hands.Hands(static_image_mode=True, max_num_hands=4),
-    )
+    with _native_logs_silenced():
+        return _Models(
+            segmenter=selfie_segmentation.SelfieSegmentation(model_selection=0),
+            # Other complexities download their model at run time; 1 ships in the wheel.
+            pose=pose.Pose(static_image_mode=True, model_complexity=1),
+            hands=hands.Hands(static_image_mode=True, max_num_hands=4),
+        )
 
 
 def _arm_band(pose_result: Any, shape: tuple[int, int]) -> np.ndarray:

@@ -128,7 +128,9 @@ def reconstruct(
     for fam in candidates:
         fam_settings = plugins.settings(fam.name, settings)
         with report.stage(f"segment[{fam.name}]" if len(candidates) > 1 else "segment", progress):
-            object_mask = _segment(plugins, rgb, fam, fam_settings, user_mask, report)
+            found = _segment(plugins, rgb, fam, fam_settings, user_mask, report)
+            occluders = occlusion.find_occluders(plugins, rgb, found, fam_settings, user_occluders)
+            object_mask = _choose_object(found, occluders, fam, report)
         with report.stage(f"classify[{fam.name}]" if len(candidates) > 1 else "classify", progress):
             try:
                 decisions, picked_subtype, renders_by_subtype = _classify(plugins, rgb, object_mask, fam, fam_settings, subtype)
@@ -139,21 +141,21 @@ def reconstruct(
                 continue
         score = max((d.confidence for d in decisions if d.name == "frontal"), default=0.0)
         if chosen is None or score > chosen[0]:
-            chosen = (score, fam, fam_settings, object_mask, decisions, picked_subtype, renders_by_subtype)
+            chosen = (score, fam, fam_settings, object_mask, occluders, decisions, picked_subtype, renders_by_subtype)
     if chosen is None:
         raise NotFrontalError("no installed family accepts this image: " + "; ".join(rejections))
-    _, fam, fam_settings, object_mask, decisions, picked_subtype, renders_by_subtype = chosen
+    _, fam, fam_settings, object_mask, occluders, decisions, picked_subtype, renders_by_subtype = chosen
     report.data["family"] = fam.name
     report.data["subtype"] = picked_subtype
     report.data["decisions"] = [d.to_dict() for d in decisions]
-    return _reconstruct_shape_and_texture(plugins, rgb, object_mask, user_occluders, fam, picked_subtype, fam_settings, renders_by_subtype[picked_subtype], report, progress)
+    return _reconstruct_shape_and_texture(plugins, rgb, object_mask, occluders, fam, picked_subtype, fam_settings, renders_by_subtype[picked_subtype], report, progress)
 
 
 def _reconstruct_shape_and_texture(
     plugins: Plugins,
     rgb: np.ndarray,
     object_mask: np.ndarray,
-    user_occluders: np.ndarray | None,
+    occluders: np.ndarray | None,
     fam: Family,
     subtype: str,
     settings: dict[str, Any],
@@ -162,7 +164,8 @@ def _reconstruct_shape_and_texture(
     progress: Callable[[str], None] | None,
 ) -> Reconstruction:
     maps: dict[str, np.ndarray] = {}
-    crop = _crop_for(object_mask, int(settings["working_resolution"]))
+    # The crop also covers occluders touching the object: the rebuilt outline lies under them.
+    crop = _crop_for(object_mask | _touching(occluders, object_mask), int(settings["working_resolution"]))
     work_rgb = _to_working(rgb[..., :3], crop, cv2.INTER_AREA)
     work_mask = _to_working(object_mask.astype(np.uint8), crop, cv2.INTER_NEAREST) > 0
     report.data["working_size"] = [int(work_mask.shape[1]), int(work_mask.shape[0])]
@@ -179,7 +182,6 @@ def _reconstruct_shape_and_texture(
         maps["aligned_template_mask"] = aligned_template_mask
 
     with report.stage("occlusion", progress):
-        occluders = occlusion.find_occluders(plugins, rgb, object_mask, settings, user_occluders)
         work_occluders = _to_working(occluders.astype(np.uint8), crop, cv2.INTER_NEAREST) > 0 if occluders is not None else np.zeros_like(work_mask)
         rebuilt = occlusion.rebuild_silhouette(
             work_mask, work_occluders, aligned_template_mask,
@@ -286,10 +288,16 @@ def _segment(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dict[str,
         report.data["segmenter"] = "segmenter chain"
     if found is None or not np.asarray(found).any():
         raise NoObjectError(f"no {fam.name} found in the image (give a mask with --mask if the object is there)")
-    objects = segment.split_objects(np.asarray(found, dtype=bool))
+    return np.asarray(found, dtype=bool)
+
+
+def _choose_object(found: np.ndarray, occluders: np.ndarray | None, fam: Family, report: Report) -> np.ndarray:
+    """The object to reconstruct: the largest piece and the pieces near it (or joined to it
+    through an occluder, like a guitar neck an arm cuts off); other objects are left out."""
+    objects = segment.split_objects(found)
     if not objects:
         raise NoObjectError(f"no {fam.name} found in the image: the segmented area is too small")
-    chosen, others = _group_near_largest(objects)
+    chosen, others = _group_near_largest(objects, occluders)
     if others:
         report.warn(f"{others + 1} separate objects found; reconstructing the largest ({int(chosen.sum())} pixels)")
     if _touches_border(chosen):
@@ -297,17 +305,18 @@ def _segment(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dict[str,
     return chosen
 
 
-def _group_near_largest(objects: list[np.ndarray]) -> tuple[np.ndarray, int]:
+def _group_near_largest(objects: list[np.ndarray], occluders: np.ndarray | None = None) -> tuple[np.ndarray, int]:
     """The largest component plus every component near it (a wheel or tail the mask split
     off belongs to the same object); returns that mask and how many objects were left out.
 
-    "Near" is within 8 % of the largest component's longest side.
+    "Near" is within 8 % of the largest component's longest side, counted across any
+    occluder touching the largest component.
     """
     chosen = objects[0].copy()
     ys, xs = np.nonzero(chosen)
     radius = max(2, int(0.08 * max(np.ptp(ys), np.ptp(xs))))
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
-    reach = cv2.dilate(chosen.astype(np.uint8), kernel) > 0
+    reach = cv2.dilate((chosen | _touching(occluders, chosen)).astype(np.uint8), kernel) > 0
     left_out = 0
     for component in objects[1:]:
         if (component & reach).any():
@@ -315,6 +324,16 @@ def _group_near_largest(objects: list[np.ndarray]) -> tuple[np.ndarray, int]:
         else:
             left_out += 1
     return chosen, left_out
+
+
+def _touching(occluders: np.ndarray | None, mask: np.ndarray) -> np.ndarray:
+    """The occluder pieces that touch ``mask`` (empty when there are no occluders)."""
+    if occluders is None or not occluders.any():
+        return np.zeros_like(mask)
+    count, labels = cv2.connectedComponents(occluders.astype(np.uint8), connectivity=8)
+    near = cv2.dilate(mask.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+    touching = np.unique(labels[near & occluders])
+    return np.isin(labels, touching[touching > 0])
 
 
 def _classify(plugins: Plugins, rgb: np.ndarray, object_mask: np.ndarray, fam: Family, settings: dict[str, Any], forced_subtype: str | None):

@@ -6,7 +6,7 @@ import pytest
 from scipy import ndimage
 
 from frontal3d.errors import ConfigError, InputError
-from frontal3d.stages.mesh import apply_symmetry, build_mesh
+from frontal3d.stages.mesh import MAX_SMOOTHING_SHIFT_PIXELS, apply_symmetry, build_mesh
 
 PIXEL_SIZE = 0.01
 
@@ -149,6 +149,22 @@ def test_vertices_stay_on_their_pixels_and_smoothing_removes_noise():
     rough_error = rough.mesh.vertices[front_vertices, 2] - front[rows, cols]
     smooth_error = smooth.mesh.vertices[front_vertices, 2] - front[rows, cols]
     assert np.abs(smooth_error).mean() < 0.5 * np.abs(rough_error).mean()
+
+
+def test_smoothing_keeps_a_tall_narrow_ridge():
+    """A fin seen edge-on is a ridge a few pixels wide: smoothing must not flatten it."""
+    mask = _disk()
+    front, back = _dome(mask)
+    ridge = np.zeros(mask.shape, dtype=bool)
+    ridge[20:60, 39:42] = True
+    fin_height = 40 * PIXEL_SIZE
+    front = np.where(ridge, front + fin_height, front)
+    result = build_mesh(mask, front, back, PIXEL_SIZE, smooth_iterations=10)
+    front_vertices = result.vertex_side == 0
+    cols, rows = result.vertex_pixel[front_vertices].astype(int).T
+    on_ridge = ridge[rows, cols]
+    lost = front[rows, cols][on_ridge] - result.mesh.vertices[front_vertices, 2][on_ridge]
+    assert lost.max() <= MAX_SMOOTHING_SHIFT_PIXELS * PIXEL_SIZE + 1e-9
 
 
 def test_front_and_back_twins_share_pixels():

@@ -23,6 +23,11 @@ SYMMETRY_RULES = ("none", "mirror_z")
 #: Weight of the neighbour average in one Laplacian smoothing step.
 _SMOOTHING_STEP = 0.5
 
+#: Farthest (in pixel sizes) smoothing may move a vertex in Z. Warp noise is a pixel or
+#: two high; anything taller is shape (an airplane's fin seen edge-on from above is a
+#: ridge a few pixels wide) and must not be flattened.
+MAX_SMOOTHING_SHIFT_PIXELS = 2.0
+
 
 @dataclass
 class MeshResult:
@@ -146,9 +151,12 @@ def _triangulate(
     front, back = _separate(front, back, min_thickness)
     if smooth_iterations > 0:
         neighbour_mean = _smoothing_operator(front_faces, count)
-        depths = np.stack([front, back], axis=1)
+        warped = np.stack([front, back], axis=1)
+        depths = warped
         for _ in range(smooth_iterations):
             depths = (1.0 - _SMOOTHING_STEP) * depths + _SMOOTHING_STEP * (neighbour_mean @ depths)
+        reach = MAX_SMOOTHING_SHIFT_PIXELS * pixel_size
+        depths = warped + np.clip(depths - warped, -reach, reach)
         front, back = _separate(depths[:, 0], depths[:, 1], min_thickness)
 
     pixel_cols = (cols * stride).astype(np.float64)
