@@ -219,16 +219,7 @@ def _reconstruct_shape_and_texture(
         report.data["boundary"] = {"k": k, "contour_points": int(len(input_contour)), "region_pivots": int(len(inner_in))}
 
     with report.stage("warp", progress):
-        template_maps = {
-            "mask": renders.mask,
-            "front_depth": renders.front_depth,
-            "back_depth": renders.back_depth,
-            "front_normals": renders.front_normals,
-            "back_normals": renders.back_normals,
-            "front_regions": renders.front_regions,
-            "back_regions": renders.back_regions,
-        }
-        warped = warp.warp_template_to_silhouette(work_mask, template_maps, similarity.matrix, out_pivots, src_pivots)
+        warped = warp.warp_template_to_silhouette(work_mask, renders.maps(), similarity.matrix, out_pivots, src_pivots)
 
     with report.stage("mesh", progress):
         pixel_size = renders.pixel_size / similarity.scale

@@ -22,6 +22,10 @@ from frontal3d.errors import TemplateError
 from frontal3d.family import Template
 
 
+#: The per-pixel maps of a template render, in the order the cache stores them.
+MAP_NAMES = ("mask", "front_depth", "back_depth", "front_normals", "back_normals", "front_regions", "back_regions")
+
+
 @dataclass
 class TemplateRenders:
     """Everything the image stages need from a template, as 2D maps.
@@ -45,6 +49,10 @@ class TemplateRenders:
     back_regions: np.ndarray
     region_names: tuple[str, ...]
     landmarks: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def maps(self) -> dict[str, np.ndarray]:
+        """The per-pixel maps by name (what the warp carries onto the image)."""
+        return {name: getattr(self, name) for name in MAP_NAMES}
 
     @property
     def resolution(self) -> int:
@@ -288,13 +296,7 @@ def _write_renders(path: Path, key: str, renders: TemplateRenders) -> None:
         "key": np.array(key),
         "center": np.asarray(renders.center, dtype=np.float64),
         "half_width": np.array(renders.half_width, dtype=np.float64),
-        "mask": renders.mask,
-        "front_depth": renders.front_depth,
-        "back_depth": renders.back_depth,
-        "front_normals": renders.front_normals,
-        "back_normals": renders.back_normals,
-        "front_regions": renders.front_regions,
-        "back_regions": renders.back_regions,
+        **renders.maps(),
         "region_names": np.array(renders.region_names, dtype=str),
         "landmark_names": np.array(names, dtype=str),
         "landmark_points": np.array([renders.landmarks[n] for n in names], dtype=np.float64).reshape(-1, 3),

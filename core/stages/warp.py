@@ -18,19 +18,12 @@ import numpy as np
 from scipy import ndimage
 
 from frontal3d.errors import ConfigError, InputError, TemplateError
+from frontal3d.render import MAP_NAMES
 
 MLS_KINDS = ("similarity", "rigid")
 
 #: Keys a template-map dict must hold for :func:`warp_template_to_silhouette`.
-TEMPLATE_MAP_KEYS = (
-    "mask",
-    "front_depth",
-    "back_depth",
-    "front_normals",
-    "back_normals",
-    "front_regions",
-    "back_regions",
-)
+TEMPLATE_MAP_KEYS = MAP_NAMES
 
 #: Entries of the N x p weight matrix evaluated at once: bounds MLS memory (~100 MB).
 _TILE_ELEMENTS = 1 << 22
