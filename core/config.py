@@ -33,6 +33,7 @@ CORE_FAMILY_SETTINGS: dict[str, Any] = {
     "back_texture": "mirror_front",  # name of a back-texture rule
     "back_texture_params": {},  # passed to the back-texture rule
     "bump_strength": 1.0,  # normal-map strength from texture derivatives
+    "size_m": 0.0,  # longest side of the output in metres; 0 = the template's real size
     "template_path": "",  # a user mesh to use instead of the built-in template
     "weights": {},  # learned-model checkpoints by model name (segmenter, frontal, subtype, regions)
 }

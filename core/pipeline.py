@@ -52,7 +52,8 @@ class Report:
         self.data["peak_memory_mb"][name] = round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1)
 
     def warn(self, message: str) -> None:
-        log.warning(message)
+        """Record a warning in the report (the CLI prints the report's warnings; -v logs them as they happen)."""
+        log.info("warning: %s", message)
         self.data["warnings"].append(message)
 
 
@@ -178,21 +179,21 @@ def _reconstruct_shape_and_texture(
         )
         report.data["alignment"] = {**similarity.to_dict(), **{k: _plain(v) for k, v in diagnostics.items()}}
         aligned_template_mask = align.warp_mask(renders.mask, similarity, work_mask.shape)
-        transferred = align.warp_labels(renders.front_regions, similarity, work_mask.shape)
+        aligned_template_regions = align.warp_labels(renders.front_regions, similarity, work_mask.shape)
         maps["aligned_template_mask"] = aligned_template_mask
+    k = int(settings["boundary_k"]) or boundary.default_k(max(work_mask.shape))
 
     with report.stage("occlusion", progress):
         work_occluders = _to_working(occluders.astype(np.uint8), crop, cv2.INTER_NEAREST) > 0 if occluders is not None else np.zeros_like(work_mask)
         rebuilt = occlusion.rebuild_silhouette(
-            work_mask, work_occluders, aligned_template_mask,
-            k=int(settings["boundary_k"]) or boundary.default_k(max(work_mask.shape)),
+            work_mask, work_occluders, aligned_template_mask, k=k,
         )
         work_mask, occluded = rebuilt.mask, rebuilt.occluded
         report.data["occlusion"] = rebuilt.summary()
         maps["occlusion_mask"] = occluded
 
     with report.stage("regions", progress):
-        transferred[~work_mask] = -1
+        transferred = np.where(work_mask, aligned_template_regions, -1)
         regions = plugins.hook.frontal3d_segment_regions(
             image=work_rgb, object_mask=work_mask, transferred_regions=transferred, family=fam, subtype=subtype, settings=settings
         )
@@ -202,17 +203,15 @@ def _reconstruct_shape_and_texture(
         maps["regions"] = regions
 
     with report.stage("boundary", progress):
-        k = int(settings["boundary_k"]) or boundary.default_k(max(work_mask.shape))
         # Both outlines on the working grid, pieces joined the same way on both sides.
         join = _pieces(work_mask) > 1 or _pieces(aligned_template_mask) > 1
         input_contour = boundary.trace_contour(_joined(work_mask) if join else work_mask)
         template_contour = boundary.trace_contour(_joined(aligned_template_mask) if join else aligned_template_mask).astype(np.float64)
         omega = boundary.match_contours(input_contour, template_contour, k)
-        template_regions_img = align.warp_labels(renders.front_regions, similarity, work_mask.shape)
         region_k = int(settings["region_k"])
-        refined = boundary.match_regions(regions, template_regions_img, input_contour, template_contour, omega, K=region_k)
+        refined = boundary.match_regions(regions, aligned_template_regions, input_contour, template_contour, omega, K=region_k)
         omega = _guarded_refinement(input_contour, template_contour, omega, refined, work_mask.shape)
-        inner_in, inner_tpl = boundary.region_pivots(regions, template_regions_img, K=region_k)
+        inner_in, inner_tpl = boundary.region_pivots(regions, aligned_template_regions, K=region_k)
         inner_in, inner_tpl = _consistent_pivots(input_contour, template_contour[omega], inner_in, inner_tpl, work_mask.shape)
         out_pivots = np.concatenate([input_contour, inner_in])
         src_pivots = np.concatenate([template_contour[omega], inner_tpl])
@@ -253,11 +252,15 @@ def _reconstruct_shape_and_texture(
             bump_strength=float(settings["bump_strength"]),
         )
 
+    # Centred at the bounding-box centre, in the template's metres unless the user gave a size.
     centre = textured.watertight_mesh.bounds.mean(axis=0)
-    textured.mesh.apply_translation(-centre)
-    if textured.watertight_mesh is not textured.mesh:
-        textured.watertight_mesh.apply_translation(-centre)
-    landmarks = {k: v - centre for k, v in landmarks.items()}
+    size = float(settings["size_m"])
+    scale = size / float(textured.watertight_mesh.extents.max()) if size > 0 else 1.0
+    geometries = [textured.mesh] if textured.mesh is textured.watertight_mesh else [textured.mesh, textured.watertight_mesh]
+    for geometry in geometries:
+        geometry.apply_translation(-centre)
+        geometry.apply_scale(scale)
+    landmarks = {name: (position - centre) * scale for name, position in landmarks.items()}
     report.data["mesh"] = {
         "vertices": int(len(textured.watertight_mesh.vertices)),
         "faces": int(len(textured.watertight_mesh.faces)),

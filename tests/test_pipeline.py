@@ -107,13 +107,14 @@ def test_report_names_every_stage_and_decision(plugins):
 
 def test_cli_reconstructs_the_bundled_example(tmp_path, capsys):
     out = tmp_path / "out"
-    assert main(["reconstruct", str(EXAMPLE), "--family", "auto", "-o", str(out)]) == 0
+    assert main(["reconstruct", str(EXAMPLE), "--family", "auto", "--set", "size_m=4.2", "-o", str(out)]) == 0
     folder = out / "sportscar"
     for name in ("model.glb", "model.obj", "model.mtl", "texture.png", "preview.png", "report.json"):
         assert (folder / name).is_file(), name
     report = json.loads((folder / "report.json").read_text())
     assert report["family"] == "car"
     assert report["mesh"]["watertight"]
+    assert max(report["mesh"]["size_m"]) == pytest.approx(4.2)
     loaded = trimesh.load(folder / "model.glb", force="scene")
     node_names = set(loaded.graph.nodes)
     assert {"wheel_front_left", "wheel_rear_right"} <= node_names
