@@ -134,7 +134,7 @@ def reconstruct(
             object_mask = _choose_object(found, occluders, fam, report)
         with report.stage(f"classify[{fam.name}]" if len(candidates) > 1 else "classify", progress):
             try:
-                decisions, picked_subtype, renders_by_subtype = _classify(plugins, rgb, object_mask, fam, fam_settings, subtype)
+                decisions, picked_subtype, renders_by_subtype = _classify(plugins, rgb, _probable_shape(object_mask, occluders), fam, fam_settings, subtype)
             except NotFrontalError as exc:
                 if len(candidates) == 1:
                     raise
@@ -174,8 +174,9 @@ def _reconstruct_shape_and_texture(
     with report.stage("align", progress):
         work_grey = cv2.cvtColor(work_rgb, cv2.COLOR_RGB2GRAY)
         template_grey = _shade(renders.front_normals, renders.mask)
+        work_shape = _to_working(_probable_shape(object_mask, occluders).astype(np.uint8), crop, cv2.INTER_NEAREST) > 0
         similarity, diagnostics = align.align_template(
-            renders.mask, work_mask, template_grey, work_grey, max_angle=np.deg2rad(settings["max_angle_deg"])
+            renders.mask, work_shape, template_grey, work_grey, max_angle=np.deg2rad(settings["max_angle_deg"])
         )
         report.data["alignment"] = {**similarity.to_dict(), **{k: _plain(v) for k, v in diagnostics.items()}}
         aligned_template_mask = align.warp_mask(renders.mask, similarity, work_mask.shape)
@@ -328,6 +329,19 @@ def _touching(occluders: np.ndarray | None, mask: np.ndarray) -> np.ndarray:
     near = cv2.dilate(mask.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
     touching = np.unique(labels[near & occluders])
     return np.isin(labels, touching[touching > 0])
+
+
+def _probable_shape(object_mask: np.ndarray, occluders: np.ndarray | None) -> np.ndarray:
+    """The object as the classifiers and the alignment should see it: the visible mask plus
+    the occluded pixels inside its convex hull (an arm across a guitar body hides body,
+    not background); the exact outline is rebuilt later from the aligned template."""
+    touching = _touching(occluders, object_mask)
+    if not touching.any():
+        return object_mask
+    points = cv2.findNonZero(object_mask.astype(np.uint8))
+    hull = np.zeros(object_mask.shape, np.uint8)
+    cv2.fillConvexPoly(hull, cv2.convexHull(points), 1)
+    return object_mask | (touching & (hull > 0))
 
 
 def _classify(plugins: Plugins, rgb: np.ndarray, object_mask: np.ndarray, fam: Family, settings: dict[str, Any], forced_subtype: str | None):
