@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from frontal3d.errors import InputError
-from frontal3d.stages.segment import grabcut_segment, mask_from_alpha, mask_from_user, split_objects
+from frontal3d.imageio import read_mask
+from frontal3d.stages.segment import grabcut_segment, mask_from_alpha, split_objects
 
 
 def _ellipse_mask(shape: tuple[int, int]) -> np.ndarray:
@@ -78,12 +79,12 @@ def test_user_mask_is_resized_only_when_the_aspect_ratio_matches(tmp_path):
     mask[10:40, 20:60] = 255
     path = tmp_path / "mask.png"
     cv2.imwrite(str(path), mask)
-    same = mask_from_user(path, (50, 100, 3))
+    same = read_mask(path, (50, 100))
     assert same.dtype == bool and same.sum() == 30 * 40
-    doubled = mask_from_user(path, (100, 200))
+    doubled = read_mask(path, (100, 200))
     assert doubled.shape == (100, 200) and doubled.sum() == 60 * 80
     with pytest.raises(InputError, match=r"100x50.*120x50"):
-        mask_from_user(path, (50, 120))
+        read_mask(path, (50, 120))
 
 
 def test_split_objects_orders_by_size_and_drops_specks():

@@ -7,12 +7,10 @@ training: a background colour model from the image border seeds OpenCV's GrabCut
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import cv2
 import numpy as np
 
-from frontal3d.imageio import read_mask
 
 #: Components smaller than this fraction of the largest are clutter, not objects.
 MIN_OBJECT_FRACTION = 0.15
@@ -28,15 +26,6 @@ BORDER_FRACTION = 0.03
 MAX_FILLED_HOLE = 0.01
 #: Below this fraction of the image, what GrabCut found is noise, not an object.
 MIN_FOREGROUND = 0.01
-
-
-def mask_from_user(path: Path, image_shape: tuple[int, ...]) -> np.ndarray:
-    """The user's mask file (non-zero = object), fitted to the image.
-
-    A mask of another size is resized (nearest) only when its aspect ratio equals the
-    image's; otherwise it belongs to another image and :class:`InputError` names both sizes.
-    """
-    return read_mask(Path(path), tuple(image_shape[:2]))
 
 
 def mask_from_alpha(image: np.ndarray) -> np.ndarray | None:
