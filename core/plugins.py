@@ -130,7 +130,7 @@ class Plugins:
             self.pm.register(module, name=info.name)
         except (pluggy.PluginValidationError, ValueError) as exc:
             raise PluginError(f"plugin {info.name}: {exc}") from exc
-        info.hooks = sorted(caller.name for caller in self.pm.get_hookcallers(module) or [])
+        info.hooks = sorted({caller.name for caller in self.pm.get_hookcallers(module) or []})
         self.infos.append(info)
 
     def _collect_families(self) -> dict[str, Family]:
