@@ -113,12 +113,17 @@ def _tip(surface: Surface, side: float) -> tuple[float, float, float]:
 
 
 def build_airliner() -> Template:
-    """A narrow-body twin jet: 38 m long, 35 m span, 4 m fuselage, low swept wing, podded engines."""
+    """A narrow-body twin jet: 38 m long, 35 m span, 4 m fuselage, swept wing at mid height, podded engines.
+
+    Fin and wing heights are set so reconstructions match real airliner models in height/length
+    (0.245) and in how far the wing plane sits below the bounding-box centre (5 % of the length):
+    the point metrics centre on the box, so a wrong fin height shifts the whole wing plane.
+    """
     radius = 2.0
     body = fuselage(body_stations(19.0, -19.0, radius, radius, 6.0, 11.0, 0.9, 0.35))
-    main = Surface(root_leading_y=3.5, root_chord=7.0, tip_chord=1.6, span=17.5, sweep_y=8.5, z=-0.2, rise=1.5, thickness=0.09)
+    main = Surface(root_leading_y=3.5, root_chord=7.0, tip_chord=1.6, span=17.5, sweep_y=8.5, z=0.2, rise=1.5, thickness=0.09)
     stabiliser = Surface(root_leading_y=-13.5, root_chord=3.8, tip_chord=1.3, span=6.3, sweep_y=3.6, z=0.6, rise=0.4, thickness=0.1)
-    tail_fin = fin(0.5, 8.0, -11.5, 5.8, 1.8, 5.0)
+    tail_fin = fin(0.5, 7.6, -11.5, 5.8, 1.8, 5.0)
     engine_x = 5.8
     engine_wing_z = main.z + main.rise * engine_x / main.span
     engines = [nacelle(side * engine_x, 5.0, 6.0, engine_wing_z - 0.6, 1.05) for side in (-1.0, 1.0)]
@@ -127,18 +132,22 @@ def build_airliner() -> Template:
     landmarks = {
         "nose": (0.0, 18.9, -0.1), "tail": (0.0, -18.9, 0.9),
         "wing_tip_left": _tip(main, -1.0), "wing_tip_right": _tip(main, 1.0),
-        "fin_tip": (0.0, -11.5 - 5.0 - 0.9, 8.3),
+        "fin_tip": (0.0, -11.5 - 5.0 - 0.9, 7.9),
     }
     return _assemble("airliner", parts, landmarks)
 
 
 def build_fighter() -> Template:
-    """A single-engine fighter: 16 m long, 11 m span, blended fuselage with side intakes, swept wing."""
+    """A single-engine fighter: 16 m long, 11 m span, blended fuselage with side intakes, swept wing.
+
+    The intakes hang below the wing so that, as on real fighter models, reconstructions put the
+    wing plane 5 % of the length below the bounding-box centre (a taller fin would push it lower).
+    """
     body = fuselage(body_stations(8.0, -8.0, 0.95, 0.55, 5.0, 3.0, 0.1, 0.5))
     main = Surface(root_leading_y=2.5, root_chord=6.5, tip_chord=1.3, span=5.5, sweep_y=4.6, z=-0.05, thickness=0.035)
     stabiliser = Surface(root_leading_y=-4.8, root_chord=2.8, tip_chord=1.0, span=3.0, sweep_y=1.9, z=0.0, thickness=0.05)
     tail_fin = fin(0.3, 2.7, -3.8, 3.6, 1.2, 3.0, thickness=0.06)
-    intakes = [fuselage([(-5.5, -0.1, 0.5, 0.4), (-4.0, -0.1, 0.6, 0.45), (1.0, -0.1, 0.6, 0.45), (2.6, -0.1, 0.55, 0.4)]).translate((side * 0.9, 0.0, 0.0))
+    intakes = [fuselage([(-5.5, -0.25, 0.5, 0.5), (-4.0, -0.25, 0.6, 0.5), (1.0, -0.25, 0.6, 0.5), (2.6, -0.25, 0.55, 0.45)]).translate((side * 0.9, 0.0, 0.0))
                for side in (-1.0, 1.0)]
     parts = [(body, "fuselage"), (wing(main), "wings"), (wing(stabiliser), "tail"), (tail_fin, "tail")]
     parts += [(intake, "engines") for intake in intakes]
