@@ -28,7 +28,7 @@ def frontal3d_segment(image: np.ndarray, family: Family, settings: dict[str, Any
 @hookimpl(trylast=True, specname="frontal3d_segment")
 def classical_segmenter(image: np.ndarray, family: Family, settings: dict[str, Any], hints: dict[str, Any]) -> np.ndarray | None:
     """The training-free fallback: GrabCut from a border-colour model."""
-    return segment.grabcut_segment(image[..., :3], shape_prior=hints.get("shape_prior"))
+    return segment.grabcut_segment(image[..., :3])
 
 
 @hookimpl
