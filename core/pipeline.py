@@ -132,9 +132,10 @@ def reconstruct(
             found = _segment(plugins, rgb, fam, fam_settings, user_mask, report)
             occluders = occlusion.find_occluders(plugins, rgb, found, fam_settings, user_occluders)
             object_mask = _choose_object(found, occluders, fam, report)
+            probable = _probable_shape(object_mask, occluders)
         with report.stage(f"classify[{fam.name}]" if len(candidates) > 1 else "classify", progress):
             try:
-                decisions, picked_subtype, renders_by_subtype = _classify(plugins, rgb, _probable_shape(object_mask, occluders), fam, fam_settings, subtype)
+                decisions, picked_subtype, renders_by_subtype = _classify(plugins, rgb, probable, fam, fam_settings, subtype)
             except NotFrontalError as exc:
                 if len(candidates) == 1:
                     raise
@@ -142,20 +143,21 @@ def reconstruct(
                 continue
         score = max((d.confidence for d in decisions if d.name == "frontal"), default=0.0)
         if chosen is None or score > chosen[0]:
-            chosen = (score, fam, fam_settings, object_mask, occluders, decisions, picked_subtype, renders_by_subtype)
+            chosen = (score, fam, fam_settings, object_mask, probable, occluders, decisions, picked_subtype, renders_by_subtype)
     if chosen is None:
         raise NotFrontalError("no installed family accepts this image: " + "; ".join(rejections))
-    _, fam, fam_settings, object_mask, occluders, decisions, picked_subtype, renders_by_subtype = chosen
+    _, fam, fam_settings, object_mask, probable, occluders, decisions, picked_subtype, renders_by_subtype = chosen
     report.data["family"] = fam.name
     report.data["subtype"] = picked_subtype
     report.data["decisions"] = [d.to_dict() for d in decisions]
-    return _reconstruct_shape_and_texture(plugins, rgb, object_mask, occluders, fam, picked_subtype, fam_settings, renders_by_subtype[picked_subtype], report, progress)
+    return _reconstruct_shape_and_texture(plugins, rgb, object_mask, probable, occluders, fam, picked_subtype, fam_settings, renders_by_subtype[picked_subtype], report, progress)
 
 
 def _reconstruct_shape_and_texture(
     plugins: Plugins,
     rgb: np.ndarray,
     object_mask: np.ndarray,
+    probable_shape: np.ndarray,
     occluders: np.ndarray | None,
     fam: Family,
     subtype: str,
@@ -174,7 +176,7 @@ def _reconstruct_shape_and_texture(
     with report.stage("align", progress):
         work_grey = cv2.cvtColor(work_rgb, cv2.COLOR_RGB2GRAY)
         template_grey = _shade(renders.front_normals, renders.mask)
-        work_shape = _to_working(_probable_shape(object_mask, occluders).astype(np.uint8), crop, cv2.INTER_NEAREST) > 0
+        work_shape = _to_working(probable_shape.astype(np.uint8), crop, cv2.INTER_NEAREST) > 0
         similarity, diagnostics = align.align_template(
             renders.mask, work_shape, template_grey, work_grey, max_angle=np.deg2rad(settings["max_angle_deg"])
         )
