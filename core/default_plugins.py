@@ -59,4 +59,4 @@ def frontal3d_symmetry_rules() -> dict[str, Callable[..., tuple[np.ndarray, np.n
 @hookimpl
 def frontal3d_occluders(image: np.ndarray, object_mask: np.ndarray, settings: dict[str, Any]) -> np.ndarray | None:
     """People's arms and hands in front of the object (needs mediapipe; without it, none)."""
-    return occluders.detect_arms_and_hands(image)
+    return occluders.detect_arms_and_hands(image, object_mask)

@@ -43,6 +43,10 @@ ARM_BAND_WIDTH = 0.45
 #: Hands: the landmarks' hull is grown by this fraction of the hand's size (landmarks sit on the joints).
 HAND_MARGIN = 0.15
 
+#: How far (fraction of the image's long side) from a found arm or hand the person's own
+#: pixels off the object are added to it.
+COMPLETION_REACH = 0.04
+
 #: mediapipe pose landmark indices, per side: shoulder, elbow, wrist, then the hand points
 #: (pinky, index, thumb) attached to the wrist.
 _ARM_CHAINS = ((11, 13, 15), (12, 14, 16))
@@ -56,9 +60,11 @@ class _Models:
     hands: Any
 
 
-def detect_arms_and_hands(image: np.ndarray) -> np.ndarray | None:
+def detect_arms_and_hands(image: np.ndarray, object_mask: np.ndarray | None = None) -> np.ndarray | None:
     """Bool mask (image-sized) of people's arms and hands, or None if there are none.
 
+    With the object's mask, the person's pixels next to a found arm or hand and off the
+    object are added (a sleeve wider than the arm band, what the hand holds).
     None too when mediapipe is not installed (with a logged warning), so a missing
     optional dependency degrades to "no occluders", never to a crash.
     """
@@ -66,10 +72,10 @@ def detect_arms_and_hands(image: np.ndarray) -> np.ndarray | None:
     if models is None:
         return None
     with _native_logs_silenced():
-        return _detect(models, image)
+        return _detect(models, image, object_mask)
 
 
-def _detect(models: _Models, image: np.ndarray) -> np.ndarray | None:
+def _detect(models: _Models, image: np.ndarray, object_mask: np.ndarray | None = None) -> np.ndarray | None:
     rgb = np.ascontiguousarray(image[..., :3], dtype=np.uint8)
     height, width = rgb.shape[:2]
     scale = min(1.0, DETECTION_SIDE / max(height, width))
@@ -81,6 +87,11 @@ def _detect(models: _Models, image: np.ndarray) -> np.ndarray | None:
         found |= _arm_band(models.pose.process(small), small.shape[:2]) & person
     if not found.any():
         return None
+    if object_mask is not None:
+        off_object = ~(cv2.resize(np.asarray(object_mask, np.uint8), found.shape[::-1], interpolation=cv2.INTER_NEAREST) > 0)
+        reach = max(1, round(COMPLETION_REACH * max(found.shape)))
+        near = cv2.dilate(found.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1,) * 2)) > 0
+        found |= near & person & off_object
     return cv2.resize(found.astype(np.uint8), (width, height), interpolation=cv2.INTER_NEAREST) > 0
 
 
@@ -103,19 +114,25 @@ def _native_logs_silenced() -> Iterator[None]:
 @lru_cache(maxsize=1)
 def _load_models() -> _Models | None:
     """The three mediapipe solutions, built once per process; None if mediapipe is missing."""
-    os.environ.setdefault("GLOG_minloglevel", "2")  # before mediapipe starts its C++ logging
     try:
         from mediapipe.python.solutions import hands, pose, selfie_segmentation
     except ImportError as exc:
         log.warning("occluder detection is off: mediapipe is not installed (%s); run scripts/setup.sh", exc)
         return None
     with _native_logs_silenced():
-        return _Models(
+        models = _Models(
             segmenter=selfie_segmentation.SelfieSegmentation(model_selection=0),
             # Other complexities download their model at run time; 1 ships in the wheel.
             pose=pose.Pose(static_image_mode=True, model_complexity=1),
             hands=hands.Hands(static_image_mode=True, max_num_hands=4),
         )
+        # The graphs open their inference calculators on worker threads after construction,
+        # each logging a warning through absl (which no environment variable silences); one
+        # run of each waits for that while stderr is still muted.
+        blank = np.zeros((64, 64, 3), np.uint8)
+        for model in (models.segmenter, models.pose, models.hands):
+            model.process(blank)
+    return models
 
 
 def _arm_band(pose_result: Any, shape: tuple[int, int]) -> np.ndarray:

@@ -135,7 +135,8 @@ def reconstruct(
             probable = _probable_shape(object_mask, occluders)
         with report.stage(f"classify[{fam.name}]" if len(candidates) > 1 else "classify", progress):
             try:
-                decisions, picked_subtype, renders_by_subtype = _classify(plugins, rgb, probable, fam, fam_settings, subtype)
+                hidden = occlusion.hidden_by(_touching(occluders, object_mask), object_mask) if probable is not object_mask else None
+                decisions, picked_subtype, renders_by_subtype, context = _classify(plugins, rgb, probable, fam, fam_settings, subtype, hidden)
             except NotFrontalError as exc:
                 if len(candidates) == 1:
                     raise
@@ -143,14 +144,14 @@ def reconstruct(
                 continue
         score = max((d.confidence for d in decisions if d.name == "frontal"), default=0.0)
         if chosen is None or score > chosen[0]:
-            chosen = (score, fam, fam_settings, object_mask, probable, occluders, decisions, picked_subtype, renders_by_subtype)
+            chosen = (score, fam, fam_settings, object_mask, probable, occluders, decisions, picked_subtype, renders_by_subtype, context)
     if chosen is None:
         raise NotFrontalError("no installed family accepts this image: " + "; ".join(rejections))
-    _, fam, fam_settings, object_mask, probable, occluders, decisions, picked_subtype, renders_by_subtype = chosen
+    _, fam, fam_settings, object_mask, probable, occluders, decisions, picked_subtype, renders_by_subtype, context = chosen
     report.data["family"] = fam.name
     report.data["subtype"] = picked_subtype
     report.data["decisions"] = [d.to_dict() for d in decisions]
-    return _reconstruct_shape_and_texture(plugins, rgb, object_mask, probable, occluders, fam, picked_subtype, fam_settings, renders_by_subtype[picked_subtype], report, progress)
+    return _reconstruct_shape_and_texture(plugins, rgb, object_mask, probable, occluders, fam, picked_subtype, fam_settings, renders_by_subtype[picked_subtype], report, progress, context)
 
 
 def _reconstruct_shape_and_texture(
@@ -165,6 +166,7 @@ def _reconstruct_shape_and_texture(
     renders: TemplateRenders,
     report: Report,
     progress: Callable[[str], None] | None,
+    context: classify.ClassifierContext,
 ) -> Reconstruction:
     maps: dict[str, np.ndarray] = {}
     # The crop also covers occluders touching the object: the rebuilt outline lies under them.
@@ -180,6 +182,15 @@ def _reconstruct_shape_and_texture(
         similarity, diagnostics = align.align_template(
             renders.mask, work_shape, template_grey, work_grey, max_angle=np.deg2rad(settings["max_angle_deg"])
         )
+        if isinstance(context, occlusion.VisibleAgreementContext):
+            # Under occluders the mutual information also sees skin inside the probable
+            # shape and can turn the template far off (53 degrees on a guitar whose tail
+            # an arm covers); the classifier placed it by the visible silhouette alone.
+            hidden = _to_working(context.hidden.astype(np.uint8), crop, cv2.INTER_NEAREST) > 0
+            placed = _working_similarity(context.agreement()[subtype].similarity, crop)
+            diagnostics["source"] = "mutual information"
+            if occlusion.seen_iou(renders.mask, placed, work_mask, hidden) > occlusion.seen_iou(renders.mask, similarity, work_mask, hidden):
+                similarity, diagnostics["source"] = placed, "classifier (agrees better with the visible outline)"
         report.data["alignment"] = {**similarity.to_dict(), **{k: _plain(v) for k, v in diagnostics.items()}}
         aligned_template_mask = align.warp_mask(renders.mask, similarity, work_mask.shape)
         aligned_template_regions = align.warp_labels(renders.front_regions, similarity, work_mask.shape)
@@ -295,6 +306,7 @@ def _choose_object(found: np.ndarray, occluders: np.ndarray | None, fam: Family,
     if not objects:
         raise NoObjectError(f"no {fam.name} found in the image: the segmented area is too small")
     chosen, others = _group_near_largest(objects, occluders)
+    chosen |= _pieces_across_occluders(found, occluders, chosen)
     if others:
         report.warn(f"{others + 1} separate objects found; reconstructing the largest ({int(chosen.sum())} pixels)")
     if _touches_border(chosen):
@@ -323,6 +335,19 @@ def _group_near_largest(objects: list[np.ndarray], occluders: np.ndarray | None 
     return chosen, left_out
 
 
+def _pieces_across_occluders(found: np.ndarray, occluders: np.ndarray | None, chosen: np.ndarray) -> np.ndarray:
+    """Pieces of ``found`` an occluder touching ``chosen`` cut off from it, however small
+    (the tail of a guitar below a strumming arm is not clutter: it fixes the body's length)."""
+    touching = _touching(occluders, chosen)
+    if not touching.any():
+        return np.zeros_like(chosen)
+    _count, labels, stats, _ = cv2.connectedComponentsWithStats(found.astype(np.uint8), connectivity=8)
+    near = cv2.dilate(touching.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+    across = np.unique(labels[near & found])
+    across = across[(across > 0) & (stats[across, cv2.CC_STAT_AREA] >= segment.MIN_OBJECT_PIXELS)]
+    return np.isin(labels, across)
+
+
 def _touching(occluders: np.ndarray | None, mask: np.ndarray) -> np.ndarray:
     """The occluder pieces that touch ``mask`` (empty when there are no occluders)."""
     if occluders is None or not occluders.any():
@@ -346,14 +371,15 @@ def _probable_shape(object_mask: np.ndarray, occluders: np.ndarray | None) -> np
     return object_mask | (touching & (hull > 0))
 
 
-def _classify(plugins: Plugins, rgb: np.ndarray, object_mask: np.ndarray, fam: Family, settings: dict[str, Any], forced_subtype: str | None):
+def _classify(plugins: Plugins, rgb: np.ndarray, object_mask: np.ndarray, fam: Family, settings: dict[str, Any],
+              forced_subtype: str | None, hidden: np.ndarray | None = None):
+    """Run the classifier chain; ``hidden`` (occluded pixels) is left out of the silhouette agreement."""
     if forced_subtype is not None and forced_subtype not in fam.subtypes:
         raise UnknownFamilyError(f"family {fam.name!r} has no subtype {forced_subtype!r} (subtypes: {', '.join(fam.subtypes)})")
     subtypes = [forced_subtype] if forced_subtype else list(fam.subtypes)
     renders_by_subtype = {s: _renders(plugins, fam, s, settings) for s in subtypes}
-    context = classify.ClassifierContext(
-        image=rgb, object_mask=object_mask, family=fam, renders=renders_by_subtype, settings=settings
-    )
+    fields = dict(image=rgb, object_mask=object_mask, family=fam, renders=renders_by_subtype, settings=settings)
+    context = occlusion.VisibleAgreementContext(**fields, hidden=hidden) if hidden is not None else classify.ClassifierContext(**fields)
     classifiers = sorted((c for group in plugins.hook.frontal3d_classifiers(family=fam) for c in group), key=lambda c: c.order)
     decisions = []
     picked = forced_subtype
@@ -368,7 +394,13 @@ def _classify(plugins: Plugins, rgb: np.ndarray, object_mask: np.ndarray, fam: F
             picked = decision.label
     if picked is None:
         picked = fam.subtypes[0]
-    return decisions, picked, renders_by_subtype
+    return decisions, picked, renders_by_subtype, context
+
+
+def _working_similarity(full_similarity: align.Similarity, crop: _Crop) -> align.Similarity:
+    """A template -> full-image similarity as template -> working pixels (cv2.resize's pixel centres)."""
+    to_working = align.Similarity(crop.scale, 0.0, (0.5 - crop.x0) * crop.scale - 0.5, (0.5 - crop.y0) * crop.scale - 0.5)
+    return to_working.compose(full_similarity)
 
 
 def _renders(plugins: Plugins, fam: Family, subtype: str, settings: dict[str, Any]) -> TemplateRenders:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.util
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -11,8 +12,14 @@ import cv2
 import frontal3d
 import numpy as np
 import pytest
-from frontal3d.occluders import detect_arms_and_hands
-from frontal3d.stages.occlusion import rebuild_silhouette
+from types import SimpleNamespace
+
+from frontal3d.family import Family
+from frontal3d.occluders import _detect, _Models, detect_arms_and_hands
+from frontal3d.pipeline import Report, _choose_object
+from frontal3d.render import TemplateRenders
+from frontal3d.stages.classify import SubtypeClassifier
+from frontal3d.stages.occlusion import VisibleAgreementContext, hidden_by, rebuild_silhouette
 
 SKIN = (224, 172, 135)
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -65,6 +72,20 @@ def test_an_arm_across_the_edge_is_rebuilt_from_the_template(occluded_ellipse):
     assert summary["restored_pixels"] > 0.8 * (truth & arm).sum()
     assert rebuilt.occluded[rebuilt.mask & arm].all()  # everything behind the arm gets inpainted
     assert not (rebuilt.occluded & ~rebuilt.mask).any()
+
+
+def test_every_restored_pixel_is_marked_for_inpainting(occluded_ellipse):
+    """What the image shows where the outline was rebuilt is not the object (an undetected
+    sleeve, background), so none of it may be copied into the texture."""
+    _, truth, template, arm = occluded_ellipse
+    visible = truth & ~arm
+    thin_arm = cv2.erode(arm.astype(np.uint8), np.ones((9, 9), np.uint8)) > 0  # a detector that found only the arm's core
+
+    rebuilt = rebuild_silhouette(visible, thin_arm, template)
+
+    restored = rebuilt.mask & ~visible
+    assert restored.sum() > 0.05 * truth.sum()
+    assert rebuilt.occluded[restored].all()
 
 
 def test_a_mask_that_includes_the_arm_still_loses_the_arm_outside_the_object(occluded_ellipse):
@@ -134,3 +155,122 @@ def test_the_pipeline_rebuilds_a_car_behind_a_painted_arm():
     assert result.mesh.is_watertight
     assert result.maps["occlusion_mask"].any()
 
+
+
+def _flat_renders(mask: np.ndarray) -> TemplateRenders:
+    """Flat one-region renders made straight from a mask, enough for the silhouette classifiers."""
+    depth = np.where(mask, 0.01, np.nan).astype(np.float32)
+    normals = np.zeros(mask.shape + (3,), np.float32)
+    normals[mask, 2] = 1.0
+    regions = np.where(mask, 0, -1).astype(np.int32)
+    return TemplateRenders((0.0, 0.0), 0.5, mask, depth, -depth, normals, -normals, regions, regions, ("body",))
+
+
+def _waisted_body(shape: tuple[int, int], upper_radius: int) -> np.ndarray:
+    """A guitar body: two bouts joined by a narrower waist."""
+    mask = np.zeros(shape, np.uint8)
+    cv2.circle(mask, (100, 80), upper_radius, 1, -1)
+    cv2.circle(mask, (100, 170), 65, 1, -1)
+    cv2.rectangle(mask, (70, 80), (130, 170), 1, -1)
+    return mask > 0
+
+
+def _hull(mask: np.ndarray) -> np.ndarray:
+    hull = np.zeros(mask.shape, np.uint8)
+    cv2.fillConvexPoly(hull, cv2.convexHull(cv2.findNonZero(mask.astype(np.uint8))), 1)
+    return hull > 0
+
+
+def test_occluded_pixels_do_not_vote_on_the_subtype():
+    """An arm across the waist of a waisted body, filled in as body, makes it look like the
+    waistless subtype; scored on the visible outline only, the waisted subtype wins."""
+    shape = (260, 200)
+    waisted = _waisted_body(shape, 50)
+    plain = _hull(waisted) | _waisted_body(shape, 54)  # no waist, a slightly larger upper bout
+    arm = np.zeros(shape, np.uint8)
+    cv2.line(arm, (0, 125), (199, 125), 1, 36)
+    arm = arm > 0
+    visible = waisted & ~arm
+    probable = visible | (arm & _hull(visible))  # what the classifiers see: the hull filled under the arm
+    family = Family(name="guitar", subtypes=("waisted", "plain"), canonical_view="front",
+                    regions={"waisted": ("body",), "plain": ("body",)}, real_size={"waisted": 1.0, "plain": 1.0})
+    image = np.where(probable[..., None], 160, 230).astype(np.uint8).repeat(3, axis=2)
+    context = VisibleAgreementContext(image=image, object_mask=probable, family=family,
+                                      renders={"waisted": _flat_renders(waisted), "plain": _flat_renders(plain)},
+                                      settings={"max_angle_deg": 180.0, "frontal_threshold": 0.45}, hidden=hidden_by(arm, visible))
+
+    decision = SubtypeClassifier().classify(context)
+
+    assert decision.label == "waisted"
+    assert decision.confidence > 0.7
+    assert context.agreement()["waisted"].iou > 0.97
+
+
+def test_a_piece_an_arm_cuts_off_is_kept_however_small():
+    """The tail of a body below a strumming arm is part of the object, not clutter."""
+    shape = (300, 200)
+    body = _ellipse(shape, (100, 150), (60, 130))
+    arm = np.zeros(shape, np.uint8)
+    cv2.line(arm, (0, 262), (199, 262), 1, 14)
+    arm = arm > 0
+    visible = body & ~arm
+    tail = visible & (np.arange(shape[0])[:, None] > 262)
+    assert 0 < tail.sum() < 0.05 * visible.sum()
+
+    family = Family(name="guitar", subtypes=("x",), canonical_view="front", regions={"x": ("body",)}, real_size={"x": 1.0})
+
+    assert _choose_object(visible, arm, family, Report())[tail].all()
+    assert not _choose_object(visible, None, family, Report())[tail].any()  # without the arm it is a speck
+
+
+@needs_mediapipe
+def test_the_detector_writes_nothing_to_stderr():
+    """mediapipe's native log lines (some written by worker threads after a call returns) stay out of the user's terminal."""
+    script = (
+        "import time, numpy as np\n"
+        "from frontal3d.occluders import detect_arms_and_hands\n"
+        "detect_arms_and_hands(np.full((240, 320, 3), 200, np.uint8))\n"
+        "time.sleep(0.5)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stderr == ""
+
+
+def test_an_empty_occluder_mask_changes_nothing():
+    image = cv2.cvtColor(cv2.imread(str(EXAMPLES / "sportscar.png"), cv2.IMREAD_UNCHANGED), cv2.COLOR_BGRA2RGBA)
+    plain = frontal3d.reconstruct(image, "car")
+    with_empty = frontal3d.reconstruct(image, "car", occluder_mask=np.zeros(image.shape[:2], bool))
+    assert with_empty.report["occlusion"]["occluded_fraction"] == 0.0
+    assert with_empty.report["alignment"] == plain.report["alignment"] | {"seconds": with_empty.report["alignment"]["seconds"]}
+    assert np.array_equal(with_empty.mesh.vertices, plain.mesh.vertices)
+
+
+def test_a_found_hand_is_completed_by_the_persons_pixels_off_the_object():
+    """A hand found over a guitar pulls in the sleeve next to it (the person's own pixels, off
+    the object), never the object's pixels; without the object's mask only the hand is found."""
+    shape = (200, 200)
+    guitar = _ellipse(shape, (100, 100), (60, 90))
+    sleeve = np.zeros(shape, bool)
+    sleeve[90:130, 0:120] = True
+    person = sleeve | guitar  # person segmenters take in the instrument a person holds
+    hand_points = [SimpleNamespace(x=x / 200, y=y / 200) for x, y in ((100, 95), (118, 95), (118, 125), (100, 125))]
+
+    def solution(result):
+        return SimpleNamespace(process=lambda image: result)
+
+    models = _Models(
+        segmenter=solution(SimpleNamespace(segmentation_mask=np.where(person, 0.95, 0.0).astype(np.float32))),
+        pose=solution(SimpleNamespace(pose_landmarks=None)),
+        hands=solution(SimpleNamespace(multi_hand_landmarks=[SimpleNamespace(landmark=hand_points)])),
+    )
+    image = np.zeros(shape + (3,), np.uint8)
+    object_mask = guitar & ~sleeve
+
+    hand_only = _detect(models, image)
+    completed = _detect(models, image, object_mask)
+
+    assert not hand_only[sleeve & (np.arange(200)[None, :] < 80)].any()
+    assert completed[sleeve & (np.arange(200)[None, :] > 90)].all()
+    assert np.array_equal(completed & object_mask, hand_only & object_mask)  # the object's own pixels are never added
+    assert not completed[sleeve & (np.arange(200)[None, :] < 50)].any()  # only near the hand

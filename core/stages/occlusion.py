@@ -15,7 +15,9 @@ from typing import Any
 
 import cv2
 import numpy as np
+from frontal3d.stages.align import Similarity, warp_mask
 from frontal3d.stages.boundary import default_k, match_contours, trace_contour
+from frontal3d.stages.classify import Agreement, ClassifierContext
 from frontal3d.stages.regions import reconstruct_region_map
 from scipy.ndimage import binary_fill_holes
 
@@ -74,6 +76,39 @@ def find_occluders(plugins: Any, image: np.ndarray, object_mask: np.ndarray, set
     return combined if combined.any() else None
 
 
+def hidden_by(occluders: np.ndarray, object_mask: np.ndarray) -> np.ndarray:
+    """Pixels whose membership in the silhouette the occluders leave unknown: the occluders
+    grown by OCCLUDER_REACH of the object's size (an arm's soft edge hides the outline too)."""
+    ys, xs = np.nonzero(object_mask)
+    size = max(np.ptp(ys), np.ptp(xs)) + 1 if len(ys) else max(object_mask.shape)
+    radius = max(1, round(OCCLUDER_REACH * size))
+    return cv2.dilate(np.asarray(occluders, dtype=np.uint8), _disc(radius)) > 0
+
+
+@dataclass
+class VisibleAgreementContext(ClassifierContext):
+    """A classifier context whose silhouette agreement is scored only where the object is
+    seen: ``hidden`` pixels (see :func:`hidden_by`) must not vote, or an arm across a
+    classical guitar's waist, filled in as body, makes its outline look electric."""
+
+    hidden: np.ndarray | None = None
+
+    def agreement(self) -> dict[str, Agreement]:
+        if self._agreement is None:
+            self._agreement = {
+                subtype: Agreement(iou=seen_iou(self.renders[subtype].mask, found.similarity, self.object_mask, self.hidden), similarity=found.similarity)
+                for subtype, found in super().agreement().items()
+            }
+        return self._agreement
+
+
+def seen_iou(template_mask: np.ndarray, similarity: Similarity, object_mask: np.ndarray, hidden: np.ndarray | None) -> float:
+    """IoU of the placed template and the object, counted outside the ``hidden`` pixels."""
+    placed = warp_mask(template_mask, similarity, object_mask.shape)
+    seen = np.ones_like(object_mask) if hidden is None else ~hidden
+    return float(np.count_nonzero(placed & object_mask & seen) / max(np.count_nonzero((placed | object_mask) & seen), 1))
+
+
 def rebuild_silhouette(object_mask: np.ndarray, occluders: np.ndarray, aligned_template_mask: np.ndarray, *, k: int | None = None) -> RebuiltSilhouette:
     """Restore the silhouette where occluders cover it, using the aligned template.
 
@@ -85,7 +120,7 @@ def rebuild_silhouette(object_mask: np.ndarray, occluders: np.ndarray, aligned_t
        between its two visible end points, moved by the similarity that sends the
        template's end points onto them (the paper's procedure).
     3. The closed outline is filled and the visible object added back; the occluded
-       pixels are the rebuilt mask's pixels under the occluders.
+       pixels (to inpaint) are the rebuilt mask's pixels under the occluders or restored.
     """
     object_mask = np.asarray(object_mask, dtype=bool)
     occluders = np.asarray(occluders, dtype=bool)
@@ -97,7 +132,7 @@ def rebuild_silhouette(object_mask: np.ndarray, occluders: np.ndarray, aligned_t
         return RebuiltSilhouette(object_mask, np.zeros_like(object_mask), original_area)
 
     visible = object_mask & ~occluders
-    filled = _filled(visible, reach & aligned_template_mask, kernel)
+    filled = _filled(visible, reach & aligned_template_mask, kernel, reach)
     contour = trace_contour(filled)
     parts = _occluded_runs(_values_at(reach, contour))
     rebuilt_parts: list[BoundaryPart] = []
@@ -108,8 +143,9 @@ def rebuild_silhouette(object_mask: np.ndarray, occluders: np.ndarray, aligned_t
         outline = np.zeros(object_mask.shape, np.uint8)
         cv2.fillPoly(outline, [np.round(contour).astype(np.int32)], 1)
         filled = binary_fill_holes((outline > 0) | visible)
-    # One pixel of slack: the occluder's anti-aliased edge must be inpainted too.
-    occluded = filled & (cv2.dilate(occluders.astype(np.uint8), _disc(1)) > 0)
+    # Inpainted: every restored pixel (what the image shows there is not the object) and the
+    # occluders with one pixel of slack (their anti-aliased edge).
+    occluded = filled & ((cv2.dilate(occluders.astype(np.uint8), _disc(1)) > 0) | ~object_mask)
     return RebuiltSilhouette(filled, occluded, original_area, rebuilt_parts)
 
 
@@ -123,13 +159,14 @@ def _disc(radius: int) -> np.ndarray:
     return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
 
 
-def _filled(visible: np.ndarray, template_near_occluders: np.ndarray, kernel: np.ndarray) -> np.ndarray:
-    """Visible object plus the template pieces under occluders that touch it, closed and hole-free (paper Fig. 5)."""
+def _filled(visible: np.ndarray, template_near_occluders: np.ndarray, kernel: np.ndarray, reach: np.ndarray) -> np.ndarray:
+    """Visible object plus the template pieces under occluders that touch it, closed within the
+    occluders' reach (the outline elsewhere, a headstock's tuner gaps, is seen) and hole-free (paper Fig. 5)."""
     _count, pieces = cv2.connectedComponents(template_near_occluders.astype(np.uint8))
     touching = np.unique(pieces[(cv2.dilate(visible.astype(np.uint8), _disc(1)) > 0) & (pieces > 0)])
     joined = visible | np.isin(pieces, touching)
     closed = cv2.morphologyEx(joined.astype(np.uint8), cv2.MORPH_CLOSE, kernel) > 0
-    return binary_fill_holes(closed)
+    return binary_fill_holes(joined | (closed & reach))
 
 
 def _values_at(mask: np.ndarray, points: np.ndarray) -> np.ndarray:
