@@ -94,7 +94,7 @@ def _parser() -> argparse.ArgumentParser:
     t.add_argument("-o", "--out", type=Path, required=True, help="PNG to write")
     t.set_defaults(run=_cmd_template_show)
 
-    p = sub.add_parser("evaluate", help="score reconstructions against ground-truth meshes (the paper's protocol)", description="For each ground-truth mesh (canonical frame), reconstruct from its frontal render and compare: voxel IoU (128^3, ICP-aligned), Chamfer-L1 and F-score@0.1. Writes metrics.csv, summary.csv and boxplots.png.")
+    p = sub.add_parser("evaluate", help="score reconstructions against ground-truth meshes (the paper's protocol)", description="For each ground-truth mesh (canonical frame), reconstruct from its frontal render and compare: voxel IoU (128^3, ICP-aligned), Chamfer-L1 and F-score@0.1 (each mesh centred on its box; also after the IoU's ICP alignment, as a second reading of the paper). Writes metrics.csv, summary.csv and boxplots.png.")
     p.add_argument("--family", required=True)
     p.add_argument("--meshes", type=Path, required=True, help="folder of ground-truth *.glb in the family's canonical frame")
     p.add_argument("--renders", type=Path, help="folder of <id>.png/<id>_mask.png/<id>.json frontal renders (default: render them)")

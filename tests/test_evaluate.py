@@ -133,3 +133,22 @@ def test_failing_reconstruction_is_recorded_not_raised(tmp_path):
     assert rows[0]["error"] == "InputError: no object found"
     assert np.isnan(rows[0]["iou"])
     assert (tmp_path / "out" / "metrics.csv").exists()
+
+
+def _plate_with_fin(fin_height: float) -> trimesh.Trimesh:
+    """A wing-like plate with a fin standing on it: the fin's height moves the bbox centre."""
+    plate = _box(1.0, 1.0, 0.03)
+    fin = _box(0.3, 0.02, fin_height)
+    fin.apply_translation((0.3, 0.0, (fin_height + 0.03) / 2))
+    return trimesh.util.concatenate([plate, fin])
+
+
+def test_icp_point_metrics_forgive_a_wrong_fin_height():
+    # The strict reading centres each mesh on its own box: the plates end up 10 % of the side
+    # apart and hardly any point is within 1 %. After the IoU's ICP the plates meet again.
+    metrics = evaluate_pair(_plate_with_fin(0.1), _plate_with_fin(0.3))
+    assert metrics["fscore"] < 0.3
+    assert metrics["fscore_icp"] > metrics["fscore"] + 0.4
+    assert metrics["chamfer_l1_icp"] < metrics["chamfer_l1"]
+    same = evaluate_pair(_plate_with_fin(0.2), _plate_with_fin(0.2))
+    assert same["fscore_icp"] == pytest.approx(same["fscore"])
