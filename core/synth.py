@@ -19,7 +19,6 @@ from typing import Callable
 import cv2
 import numpy as np
 import open3d as o3d
-import trimesh
 
 from frontal3d.family import Family, Template
 
@@ -94,7 +93,7 @@ def render_sample(template: Template, rng: np.random.Generator, resolution: int)
     mask = face_ids >= 0
     safe_ids = np.where(mask, face_ids, 0)
     regions = np.where(mask, template.face_regions[safe_ids], -1)
-    normals = trimesh.triangles.normals(vertices[faces])[0][safe_ids]
+    normals = _face_normals(vertices[faces])[safe_ids]
     normals = np.where(normals[..., 2:3] < 0, -normals, normals)
     albedo = _paint(regions, hit_points, template.region_names, rng)
     light = _unit(np.array([rng.uniform(-0.7, 0.7), rng.uniform(-0.7, 0.7), 1.0]))
@@ -214,6 +213,17 @@ def _background(resolution: int, rng: np.random.Generator) -> np.ndarray:
     weight = cv2.GaussianBlur(weight, (0, 0), max(1.0, resolution / 100))[..., None]
     background = background * (1 - weight) + blobs * weight
     return np.clip(background, 0, 255)
+
+
+def _face_normals(triangles: np.ndarray) -> np.ndarray:
+    """Unit normal per triangle, one row per face.
+
+    Degenerate triangles get a zero normal instead of being dropped (as
+    ``trimesh.triangles.normals`` does), so the rows stay aligned with the face ids.
+    """
+    cross = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
+    length = np.linalg.norm(cross, axis=1, keepdims=True)
+    return np.divide(cross, length, out=np.zeros_like(cross), where=length > 0)
 
 
 def _unit(vector: np.ndarray) -> np.ndarray:

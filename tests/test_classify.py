@@ -126,3 +126,19 @@ def test_a_dark_sound_hole_decides_between_two_equal_silhouettes():
     cv2.circle(holed, (160, 160 + round(1.8 * (75 - 79.5))), round(1.8 * 16), (25, 20, 15), -1)
     decision = SubtypeClassifier().classify(_context(photo_mask, renders, holed))
     assert decision.label == "classical" and decision.runner_up == "electric"
+
+
+@pytest.mark.parametrize("subtype", ["classical", "electric"])
+def test_the_chain_rejects_a_side_on_guitar_and_says_which_view_it_needs(subtype):
+    import frontal3d
+    from frontal3d.errors import NotFrontalError
+    from frontal3d.photo_render import frontal_camera, render_frontal
+    from frontal3d.plugins import Plugins
+
+    plugins = Plugins()
+    family = plugins.family("guitar")
+    mesh = plugins.hook.frontal3d_template(family=family, subtype=subtype, settings=plugins.settings("guitar")).mesh.copy()
+    mesh.apply_transform(trimesh.transformations.rotation_matrix(np.deg2rad(80.0), [0, 1, 0]))
+    rgba = render_frontal(mesh, frontal_camera(mesh, 256, 0.8))
+    with pytest.raises(NotFrontalError, match="front view of the guitar's face"):
+        frontal3d.reconstruct(rgba, "guitar", plugins=plugins, template_resolution=128, working_resolution=128)

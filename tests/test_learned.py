@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import csv
+from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 import torch
+import trimesh
 
 from frontal3d.cli import main
 from frontal3d.errors import ConfigError
@@ -169,3 +171,40 @@ def test_reconstruction_reports_the_learned_decision_with_its_confidence(trained
     label, confidence, _, _ = load_classifier(trained["subtype"]).predict(rgba[..., :3], mask)
     assert decision["label"] == label == result.report["subtype"]
     assert decision["confidence"] == pytest.approx(confidence, abs=1e-4) and "learned model" in decision["reason"]
+
+
+SHIPPED_GATES = sorted((Path(__file__).parents[1] / "families").glob("*/weights/frontal.pt"))
+
+
+@pytest.mark.parametrize("checkpoint", SHIPPED_GATES, ids=lambda path: path.parts[-3])
+def test_shipped_gate_loads_and_tells_its_template_frontal_from_turned_60_degrees(checkpoint):
+    from frontal3d.photo_render import frontal_camera, render_frontal
+
+    plugins = Plugins()
+    family = plugins.family(checkpoint.parts[-3])
+    model = load_classifier(checkpoint, "frontal", family)  # replays the stored reference prediction
+    template = plugins.hook.frontal3d_template(family=family, subtype=family.subtypes[0], settings=plugins.settings(family.name))
+    palette = np.array([[200, 60, 40, 255], [40, 40, 60, 255], [30, 30, 30, 255], [230, 200, 60, 255], [90, 160, 90, 255], [60, 90, 200, 255]], np.uint8)
+    frontal_probability = {}
+    for yaw in (0.0, 60.0):
+        mesh = template.mesh.copy()
+        mesh.visual = trimesh.visual.ColorVisuals(mesh, face_colors=palette[template.face_regions % len(palette)])
+        mesh.apply_transform(trimesh.transformations.rotation_matrix(np.deg2rad(yaw), [0, 1, 0]))
+        rgba = render_frontal(mesh, frontal_camera(mesh, 256, 0.8))
+        frontal_probability[yaw] = model.probabilities(rgba[..., :3], rgba[..., 3] > 0)[model.classes.index("frontal")]
+    assert frontal_probability[0.0] > 0.5 > frontal_probability[60.0]
+
+
+def test_synth_shades_a_template_with_a_degenerate_triangle_like_the_same_template_without_it():
+    from frontal3d.family import Template
+    from frontal3d.synth import render_sample
+
+    box = trimesh.creation.box(extents=[1.0, 0.6, 0.2])
+    clean = Template("car", "sedan", box, np.zeros(len(box.faces), np.int64), ("body",))
+    with_sliver = trimesh.Trimesh(box.vertices, np.vstack([[0, 0, 1], box.faces]), process=False)
+    degenerate = Template("car", "sedan", with_sliver, np.zeros(len(with_sliver.faces), np.int64), ("body",))
+    for index in range(3):
+        expected = render_sample(clean, np.random.default_rng([0, index]), 64)
+        found = render_sample(degenerate, np.random.default_rng([0, index]), 64)
+        np.testing.assert_array_equal(found.mask, expected.mask)
+        np.testing.assert_array_equal(found.image, expected.image)
