@@ -26,7 +26,7 @@ CORE_FAMILY_SETTINGS: dict[str, Any] = {
     "region_k": 32,  # the per-region jump bound K of section 3.2.2
     "max_angle_deg": 180.0,  # in-plane rotation searched by the alignment
     "frontal_threshold": 0.45,  # minimum silhouette agreement (IoU x foreshortening) of the frontal gate
-    "depth_scale": "global",  # local, smooth or global: how depth follows the warp's stretch
+    "depth_scale": "global",  # local, smooth, global or length (the object's length): how depth follows the warp
     "smooth_iterations": 10,  # Laplacian smoothing passes of the mesh
     "max_vertices": 0,  # 0 = keep every pixel's vertex
     "symmetry": "none",  # name of a symmetry rule

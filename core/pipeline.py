@@ -236,7 +236,7 @@ def _reconstruct_shape_and_texture(
 
     with report.stage("mesh", progress):
         pixel_size = renders.pixel_size / similarity.scale
-        relative_scale = _depth_scale(warped.local_scale / similarity.scale, work_mask, settings["depth_scale"])
+        relative_scale = _depth_scale(warped.local_scale / similarity.scale, work_mask, settings["depth_scale"], _length_ratio(work_mask, renders.mask, similarity))
         front_z = warped.front_depth * relative_scale
         back_z = warped.back_depth * relative_scale
         rule = _rule(plugins.hook.frontal3d_symmetry_rules(), settings["symmetry"], "symmetry")
@@ -485,13 +485,16 @@ def _to_working(array: np.ndarray, crop: _Crop, interpolation: int) -> np.ndarra
     return cv2.resize(cropped, (w, h), interpolation=interpolation)
 
 
-def _depth_scale(relative_scale: np.ndarray, mask: np.ndarray, mode: str) -> np.ndarray:
+def _depth_scale(relative_scale: np.ndarray, mask: np.ndarray, mode: str, length_ratio: float) -> np.ndarray:
     """How much to scale the template's depth at each pixel (paper 3.2.5: "we scale the Z
     dimension accordingly"): ``local`` follows the warp's local stretch, ``smooth`` the
-    same blurred over a tenth of the object, ``global`` only the alignment's scale.
+    same blurred over a tenth of the object, ``global`` only the alignment's scale,
+    ``length`` the object's length against the aligned template's (:func:`_length_ratio`).
     """
     if mode == "global":
         return np.ones_like(relative_scale)
+    if mode == "length":
+        return np.full_like(relative_scale, length_ratio)
     if mode == "smooth":
         sigma = 0.1 * max(mask.shape)
         weight = cv2.GaussianBlur(mask.astype(np.float32), (0, 0), sigma)
@@ -499,7 +502,17 @@ def _depth_scale(relative_scale: np.ndarray, mask: np.ndarray, mode: str) -> np.
         return np.where(weight > 1e-6, blurred / np.maximum(weight, 1e-6), 1.0)
     if mode == "local":
         return relative_scale
-    raise ConfigError(f"depth_scale must be local, smooth or global, not {mode!r}")
+    raise ConfigError(f"depth_scale must be local, smooth, global or length, not {mode!r}")
+
+
+def _length_ratio(object_mask: np.ndarray, template_mask: np.ndarray, similarity: align.Similarity) -> float:
+    """The object's extent along the placed template's vertical axis over the template's own:
+    an airplane's fin and fuselage depth follow its length, not the compromise between
+    span and length that the alignment's scale strikes."""
+    axis = np.array([-np.sin(similarity.angle), np.cos(similarity.angle)])
+    rows, cols = np.nonzero(object_mask)
+    extent = np.ptp(np.column_stack([cols, rows]) @ axis)
+    return float(extent / (similarity.scale * np.ptp(np.nonzero(template_mask)[0])))
 
 
 def _shade(normals: np.ndarray, mask: np.ndarray) -> np.ndarray:

@@ -119,3 +119,25 @@ def test_cli_reconstructs_the_bundled_example(tmp_path, capsys):
     node_names = set(loaded.graph.nodes)
     assert {"wheel_front_left", "wheel_rear_right"} <= node_names
     assert [p for p in tmp_path.iterdir()] == [out]  # no staging folder left behind
+
+
+def _fuselage_depth_over_length(mesh: trimesh.Trimesh) -> float:
+    """Depth of the mesh at its planform centre (the fuselage), over its length (Y)."""
+    lo, hi = mesh.bounds
+    centre, length = (lo + hi) / 2, hi[1] - lo[1]
+    near = (np.abs(mesh.vertices[:, 0] - centre[0]) < 0.03 * length) & (np.abs(mesh.vertices[:, 1] - centre[1]) < 0.05 * length)
+    return float(np.ptp(mesh.vertices[near, 2]) / length)
+
+
+def test_length_depth_keeps_a_wide_span_plane_as_deep_as_it_is_long(plugins):
+    """A plane with 40 % more span than the template: with depth_scale=length its fuselage keeps
+    the template's depth for its length; scaled by the alignment alone it comes out too deep."""
+    import cv2
+
+    rgba, template = _template_photo(plugins, "airplane", "light")
+    wide = cv2.resize(rgba, (int(rgba.shape[1] * 1.4), rgba.shape[0]), interpolation=cv2.INTER_NEAREST)
+    expected = _fuselage_depth_over_length(template.mesh)
+    by_length = frontal3d.reconstruct(wide, "airplane", subtype="light", plugins=plugins, depth_scale="length")
+    by_alignment = frontal3d.reconstruct(wide, "airplane", subtype="light", plugins=plugins, depth_scale="global")
+    assert _fuselage_depth_over_length(by_length.mesh) == pytest.approx(expected, rel=0.08)
+    assert _fuselage_depth_over_length(by_alignment.mesh) > 1.15 * expected
