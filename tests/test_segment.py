@@ -58,6 +58,102 @@ def test_grabcut_finds_an_ellipse_on_a_mildly_cluttered_background():
     assert _iou(found, truth) > 0.85
 
 
+def _airplane_mask(shape: tuple[int, int]) -> np.ndarray:
+    """A top-view airplane: fuselage, swept wings and a tailplane (thin parts included)."""
+    h, w = shape
+    mask = np.zeros(shape, np.uint8)
+    cx = w // 2
+    cv2.ellipse(mask, (cx, h // 2), (w // 40, int(h * 0.4)), 0, 0, 360, 1, -1)
+    wing = np.array([[cx, h // 2 - 30], [cx + int(w * 0.3), h // 2 + 40], [cx + int(w * 0.3), h // 2 + 60], [cx, h // 2 + 30]])
+    tail = np.array([[cx, int(h * 0.8)], [cx + w // 10, int(h * 0.86)], [cx + w // 10, int(h * 0.89)], [cx, int(h * 0.87)]])
+    for part in (wing, tail):
+        cv2.fillPoly(mask, [part, part * [-1, 1] + [2 * cx, 0]], 1)
+    return mask > 0
+
+
+def _light_gradient(shape: tuple[int, int]) -> np.ndarray:
+    """A sky: light blue at the top, grey-green toward the horizon."""
+    t = np.linspace(0, 1, shape[0])[:, None, None]
+    return (1 - t) * np.array([200.0, 215, 235]) + t * np.array([120.0, 130, 110]) + np.zeros(shape + (3,))
+
+
+def _mild_clutter(shape: tuple[int, int], rng: np.random.Generator) -> np.ndarray:
+    """A soft vignette over a tinted gradient, low-contrast texture and a few faint shapes."""
+    h, w = shape
+    yy, xx = np.mgrid[0:h, 0:w] / max(h, w)
+    background = (1 - xx[..., None]) * np.array([205.0, 195, 215]) + xx[..., None] * np.array([190.0, 210, 180])
+    background *= (1 - 0.4 * ((xx - 0.5 * w / max(h, w)) ** 2 + (yy - 0.5 * h / max(h, w)) ** 2))[..., None]
+    texture = cv2.GaussianBlur(rng.normal(0, 1, shape).astype(np.float32), (0, 0), 3)
+    background += (texture / texture.std() * 4)[..., None]
+    for _ in range(3):
+        shape_mask = np.zeros(shape, np.float32)
+        cv2.circle(shape_mask, (int(rng.integers(0, w // 5)), int(rng.integers(0, h))), int(rng.integers(20, 50)), 1.0, -1)
+        background += cv2.GaussianBlur(shape_mask, (0, 0), 2)[..., None] * rng.uniform(-15, 15, 3)
+    return background
+
+
+def test_grabcut_finds_a_light_grey_airplane_on_a_light_sky_gradient():
+    rng = np.random.default_rng(4)
+    shape = (480, 640)
+    truth = _airplane_mask(shape)
+    found = grabcut_segment(_composite(_light_gradient(shape), truth, (200, 200, 205), rng))
+    assert found is not None
+    assert _iou(found, truth) > 0.9
+
+
+def test_grabcut_finds_a_light_smooth_object_on_a_grainy_background():
+    rng = np.random.default_rng(8)
+    shape = (480, 640)
+    truth = _airplane_mask(shape)
+    grain = cv2.GaussianBlur(np.clip(rng.normal(170, 25, shape + (3,)), 0, 255), (0, 0), 1.0)
+    image = np.where(truth[..., None], np.array([198.0, 196, 194]), grain)
+    found = grabcut_segment(np.clip(image + rng.normal(0, 2, image.shape), 0, 255).astype(np.uint8))
+    assert found is not None
+    assert _iou(found, truth) > 0.85
+
+
+def test_grabcut_finds_a_car_like_object_on_mild_clutter_with_a_vignette():
+    rng = np.random.default_rng(5)
+    shape = (480, 640)
+    truth = np.zeros(shape, np.uint8)
+    cv2.rectangle(truth, (140, 230), (520, 330), 1, -1)
+    cv2.rectangle(truth, (230, 170), (420, 240), 1, -1)
+    for x in (200, 460):
+        cv2.circle(truth, (x, 330), 40, 1, -1)
+    truth = truth > 0
+    found = grabcut_segment(_composite(_mild_clutter(shape, rng), truth, (150, 160, 175), rng))
+    assert found is not None
+    assert _iou(found, truth) > 0.9
+
+
+def test_grabcut_finds_an_object_in_front_of_a_multicoloured_scene():
+    rng = np.random.default_rng(6)
+    shape = (360, 640)
+    background = np.empty(shape + (3,))
+    background[:120] = (70, 120, 50)  # grass
+    background[120:150] = (200, 60, 60)  # kerb
+    background[150:] = (95, 95, 100)  # road
+    truth = np.zeros(shape, np.uint8)
+    cv2.ellipse(truth, (320, 200), (220, 70), 0, 0, 360, 1, -1)
+    truth = truth > 0
+    found = grabcut_segment(_composite(background, truth, (235, 235, 240), rng))
+    assert found is not None
+    assert _iou(found, truth) > 0.9
+
+
+def test_grabcut_sets_a_white_print_border_aside():
+    rng = np.random.default_rng(7)
+    shape = (400, 560)
+    truth = _ellipse_mask(shape)
+    picture = np.clip(_composite(_light_gradient(shape) * 0.6, truth, (230, 230, 235), rng), 0, 255)
+    picture[:20] = picture[-20:] = 250
+    picture[:, :20] = picture[:, -20:] = 250
+    found = grabcut_segment(picture)
+    assert found is not None
+    assert not found[:20].any() and not found[:, :20].any()
+    assert _iou(found, truth) > 0.9
+
+
 def test_grabcut_returns_none_for_an_image_without_an_object():
     rng = np.random.default_rng(3)
     plain = np.clip(rng.normal(128, 5, (200, 300, 3)), 0, 255).astype(np.uint8)

@@ -2,11 +2,11 @@
 
 The chain (``frontal3d_segment`` hook) asks, in order: the user's mask, the alpha
 channel, learned segmenters from plugins, then :func:`grabcut_segment`, which needs no
-training: a background colour model from the image border seeds OpenCV's GrabCut.
+training: a smooth background model fitted from the image border inwards, with edge and
+texture cues, seeds OpenCV's GrabCut.
 """
 
 from __future__ import annotations
-
 
 import cv2
 import numpy as np
@@ -22,6 +22,26 @@ GRABCUT_SIZE = 400
 REFINE_MAX_SIZE = 1600
 #: Width of the image border, as a fraction of the long side, taken as background.
 BORDER_FRACTION = 0.03
+#: Fits of the smooth background model (the first from the border alone).
+BACKGROUND_FIT_ROUNDS = 4
+#: Seeds reach this fraction of the long side; beyond it lies definite background.
+SEED_REACH = 0.1
+#: Texture below this fraction of the border's quietest marks a smooth (object) surface.
+SMOOTHNESS_RATIO = 0.6
+#: A frame (border, letterbox) is at most this fraction of the image on each side.
+MAX_FRAME_FRACTION = 0.15
+#: Largest per-channel standard deviation along a line of a uniform frame.
+FRAME_UNIFORMITY = 8.0
+#: Colour step from a frame to the picture inside it.
+FRAME_CONTRAST = 20.0
+#: Colour clusters are fitted to at most about this many sampled pixels (speed).
+MAX_CLUSTER_SAMPLES = 20000
+#: Multiple of the border's colour spread (98th percentile) beyond which a pixel is
+#: surely not background.
+STRONG_DIFFERENCE = 3.0
+#: A weakly different pixel is object-like when its distance to the object's colours is
+#: below this multiple of its distance to the background's.
+OBJECT_LIKENESS = 2.0
 #: Holes smaller than this fraction of the object are filled (specular spots, logos).
 MAX_FILLED_HOLE = 0.01
 #: Below this fraction of the image, what GrabCut found is noise, not an object.
@@ -50,25 +70,42 @@ def split_objects(mask: np.ndarray) -> list[np.ndarray]:
 
 
 def grabcut_segment(image: np.ndarray, shape_prior: np.ndarray | None = None, iterations: int = 5) -> np.ndarray | None:
-    """Segment the object(s) in front of a plain or mildly cluttered background.
+    """Segment the object(s) in front of a plain, graded or mildly cluttered background.
 
-    Pixels near the border are background; pixels far in colour from every border
-    colour cluster are probable foreground (``shape_prior``, a bool mask of where the
-    object probably is, adds its interior and rules out what lies far outside it).
-    GrabCut settles the boundary at a working size; the mask is then upsampled and its
-    edge refined by a second GrabCut in a thin band at full resolution. Returns None
-    when nothing object-like stands out (under 1 % of the image, or a region touching
-    all four borders, which is background the border model could not explain).
+    A smooth background (a low-order polynomial per Lab channel, fitted robustly from
+    the border inwards) is subtracted, so a light-grey object on a light gradient stands
+    out as much as a red one on white. Pixels far from that model seed GrabCut, which
+    runs on the flattened image at a working size; its edge is then refined in a thin
+    band at full resolution. ``shape_prior`` (a bool mask of where the object probably
+    is) adds its interior and rules out what lies far outside it. Returns None when
+    nothing object-like stands out (under 1 % of the image, or a region touching all
+    four borders, which is background the model could not explain). A uniform frame
+    around the picture (a print border, a letterbox) is set aside first.
     """
     rgb = np.ascontiguousarray(image[..., :3], dtype=np.uint8)
+    rows, cols = _inside_frame(rgb)
+    inner = _segment_unframed(np.ascontiguousarray(rgb[rows, cols]), None if shape_prior is None else shape_prior[rows, cols], iterations)
+    if inner is None:
+        return None
+    mask = np.zeros(rgb.shape[:2], bool)
+    mask[rows, cols] = inner
+    return mask
+
+
+def _segment_unframed(rgb: np.ndarray, shape_prior: np.ndarray | None, iterations: int) -> np.ndarray | None:
+    """:func:`grabcut_segment` on a picture whose border is its background."""
     height, width = rgb.shape[:2]
     scale = min(1.0, GRABCUT_SIZE / max(height, width))
     small_size = (max(1, round(width * scale)), max(1, round(height * scale)))
     small = cv2.resize(rgb, small_size, interpolation=cv2.INTER_AREA)
-    init = _initial_labels(small, None if shape_prior is None else _resize_mask(shape_prior, small.shape[:2]))
+    lab = cv2.cvtColor(small, cv2.COLOR_RGB2LAB).astype(np.float32)
+    border = _border_mask(small.shape[:2])
+    background = _smooth_background(lab, border)
+    flattened = np.clip(lab - background + background[border].mean(axis=0), 0, 255).astype(np.uint8)
+    init = _initial_labels(lab, background, border, None if shape_prior is None else _resize_mask(shape_prior, small.shape[:2]))
     if init is None:
         return None
-    _grabcut(small, init, iterations)
+    _grabcut(flattened, init, iterations)
     found = _clean(_foreground(init))
     if found.mean() < MIN_FOREGROUND or _touches_all_borders(found):
         return None
@@ -79,31 +116,127 @@ def grabcut_segment(image: np.ndarray, shape_prior: np.ndarray | None = None, it
     return refined
 
 
-def _initial_labels(small: np.ndarray, prior: np.ndarray | None) -> np.ndarray | None:
-    """GrabCut's initial label map; None when no pixel differs from the background."""
-    lab = cv2.cvtColor(cv2.GaussianBlur(small, (0, 0), 1.0), cv2.COLOR_RGB2LAB).astype(np.float32)
-    border = max(2, round(BORDER_FRACTION * max(small.shape[:2])))
-    border_mask = np.zeros(small.shape[:2], bool)
-    border_mask[:border] = border_mask[-border:] = True
-    border_mask[:, :border] = border_mask[:, -border:] = True
-    distance = _distance_to_border_colours(lab, border_mask)
-    # Border pixels are the background's own spread (noise, gradients): beyond it is "different".
-    threshold = max(12.0, 1.5 * float(np.percentile(distance[border_mask], 98)))
+def _inside_frame(rgb: np.ndarray) -> tuple[slice, slice]:
+    """Rows and columns inside a uniform frame or letterbox, which would pass for the background.
+
+    A side's frame is its run of uniform lines, but only when the first line after it
+    differs from the frame nearly everywhere: on a plain background the first
+    non-uniform line is where the object starts, and that differs only in part.
+    """
+    height, width = rgb.shape[:2]
+    image = rgb.astype(np.float32)
+    sides = {"top": image, "bottom": image[::-1], "left": image.transpose(1, 0, 2), "right": image.transpose(1, 0, 2)[::-1]}
+    depth = {}
+    for side, lines in sides.items():
+        lines = lines[: max(2, int(MAX_FRAME_FRACTION * len(lines))) + 1]
+        uniform = lines.std(axis=1).max(axis=1) < FRAME_UNIFORMITY
+        count = int(np.argmin(uniform)) if not uniform.all() else 0
+        following_differs = count > 0 and (np.abs(lines[count] - lines[count - 1].mean(axis=0)).max(axis=1) > FRAME_CONTRAST).mean() > 0.8
+        depth[side] = count if following_differs else 0
+    return slice(depth["top"], height - depth["bottom"]), slice(depth["left"], width - depth["right"])
+
+
+def _border_mask(shape: tuple[int, int]) -> np.ndarray:
+    border = max(2, round(BORDER_FRACTION * max(shape)))
+    mask = np.zeros(shape, bool)
+    mask[:border] = mask[-border:] = True
+    mask[:, :border] = mask[:, -border:] = True
+    return mask
+
+
+def _smooth_background(lab: np.ndarray, border: np.ndarray) -> np.ndarray:
+    """A degree-2 polynomial per channel fitted to the background, iteratively trimmed.
+
+    The first fit uses the border only; later fits use every pixel the current model
+    explains (within 3 border spreads), so the object drops out and gradients and
+    vignettes are followed across the whole image.
+    """
+    height, width = lab.shape[:2]
+    ys, xs = np.mgrid[0:height, 0:width].astype(np.float32)
+    x, y = 2 * xs / max(width - 1, 1) - 1, 2 * ys / max(height - 1, 1) - 1
+    basis = np.stack([np.ones_like(x), x, y, x * x, x * y, y * y], axis=-1).reshape(-1, 6)
+    # Fit on every second pixel (the model is smooth), evaluate everywhere.
+    sample_basis, values = basis.reshape(height, width, 6)[::2, ::2].reshape(-1, 6), lab[::2, ::2].reshape(-1, 3)
+    on_border = border[::2, ::2].reshape(-1)
+    weights = on_border.astype(np.float32)
+    for _ in range(BACKGROUND_FIT_ROUNDS):
+        weighted = sample_basis * weights[:, None]
+        coefficients = np.linalg.solve(weighted.T @ sample_basis + 1e-3 * np.eye(6), weighted.T @ values)
+        distance = np.linalg.norm(values - sample_basis @ coefficients, axis=1)
+        spread = float(np.percentile(distance[on_border], 90)) + 1.0
+        weights = (distance < 3 * spread).astype(np.float32)
+    return (basis @ coefficients.astype(np.float32)).reshape(lab.shape)
+
+
+def _initial_labels(lab: np.ndarray, background: np.ndarray, border_mask: np.ndarray, prior: np.ndarray | None) -> np.ndarray | None:
+    """GrabCut's initial label map; None when no pixel differs from the background.
+
+    Probable foreground: what the background model cannot explain (weak differences
+    too, where they are solid areas touching strong ones: a wing barely lighter than
+    the sky), smooth surfaces on a textured background, and regions closed off by
+    strong edges (an object of the background's own colour still has an outline).
+    Definite background: the border and whatever lies far from all of these.
+    """
+    residual = lab - background
+    # Distance to the nearest border colour after flattening: one colour for a plain or
+    # graded background, a few for a scene (grass, kerb, road).
+    smoothed = cv2.GaussianBlur(residual, (0, 0), 1.5)
+    distance = _distance_to_colours(smoothed, smoothed[border_mask])
+    # Border pixels are the background's own spread (noise, texture): beyond it is "different".
+    spread = float(np.percentile(distance[border_mask], 98))
+    threshold = max(6.0, STRONG_DIFFERENCE * spread)
     different = cv2.morphologyEx((distance > threshold).astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8)) > 0
+    # Hysteresis: weaker differences (from the background's median colour, which unlike
+    # its clusters does not also cover a surface slightly off it) count where they look
+    # like the strong ones and form solid areas touching them: a wing barely lighter
+    # than the sky joins its fuselage, a faint shape of another colour does not.
+    offset = np.linalg.norm(smoothed - np.median(smoothed[border_mask], axis=0), axis=2)
+    weak_threshold = max(4.0, float(np.percentile(offset[border_mask], 90)))
+    core = cv2.erode(different.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0  # no edge blends
+    if core.any():
+        object_like = _distance_to_colours(smoothed, smoothed[core]) < OBJECT_LIKENESS * distance
+        weak = cv2.morphologyEx(((offset > weak_threshold) & object_like).astype(np.uint8), cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7)))
+        _, weak_labels = cv2.connectedComponents(weak | different.astype(np.uint8), connectivity=8)
+        different |= np.isin(weak_labels, np.unique(weak_labels[different])) & (weak_labels > 0)
+    candidates = (different | _smoother_than_background(residual[..., 0], border_mask) | _enclosed_by_edges(lab, border_mask)) & ~border_mask
     salient = np.zeros_like(different)
-    for component in split_objects(different & ~border_mask):
+    for component in split_objects(candidates):
         salient |= component
-    init = np.full(small.shape[:2], cv2.GC_PR_BGD, np.uint8)
+    init = np.full(lab.shape[:2], cv2.GC_PR_BGD, np.uint8)
+    reach = max(3, round(SEED_REACH * max(lab.shape[:2])))
+    near = cv2.dilate(salient.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1,) * 2)) > 0
+    init[~near] = cv2.GC_BGD
     init[salient] = cv2.GC_PR_FGD
     if prior is not None and prior.any():
-        reach = max(3, round(0.1 * max(small.shape[:2])))
-        near = cv2.dilate(prior.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1,) * 2)) > 0
-        init[~near] = cv2.GC_BGD
-        init[prior & near] = cv2.GC_PR_FGD
+        near_prior = cv2.dilate(prior.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1,) * 2)) > 0
+        init[~near_prior] = cv2.GC_BGD
+        init[prior & near_prior] = cv2.GC_PR_FGD
     init[border_mask] = cv2.GC_BGD
     if (init == cv2.GC_PR_FGD).mean() < MIN_FOREGROUND / 2:
         return None
     return init
+
+
+def _smoother_than_background(lightness: np.ndarray, border_mask: np.ndarray) -> np.ndarray:
+    """Where a textured background (paper, fabric, sensor grain) gives way to a smooth surface."""
+    fine = cv2.GaussianBlur(lightness, (0, 0), 1.0) - cv2.GaussianBlur(lightness, (0, 0), 3.0)
+    texture = np.sqrt(cv2.GaussianBlur(fine * fine, (0, 0), 4.0))
+    floor = float(np.percentile(texture[border_mask], 5))
+    smooth = texture < SMOOTHNESS_RATIO * floor
+    return cv2.morphologyEx(smooth.astype(np.uint8), cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))) > 0
+
+
+def _enclosed_by_edges(lab: np.ndarray, border_mask: np.ndarray) -> np.ndarray:
+    """Regions closed off from the border by edges stronger than the border's own texture."""
+    lightness = cv2.GaussianBlur(lab[..., 0], (0, 0), 1.0)
+    gradient = np.hypot(cv2.Sobel(lightness, cv2.CV_32F, 1, 0), cv2.Sobel(lightness, cv2.CV_32F, 0, 1))
+    low = max(8.0, float(np.percentile(gradient[border_mask], 99)))
+    edges = cv2.Canny(np.clip(lightness, 0, 255).astype(np.uint8), low, 2 * low, L2gradient=True) > 0
+    closed = cv2.morphologyEx(edges.astype(np.uint8), cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5)))
+    _, labels = cv2.connectedComponents((closed == 0).astype(np.uint8), connectivity=4)
+    outside = np.unique(labels[border_mask & (closed == 0)])
+    enclosed = ~np.isin(labels, outside)
+    return cv2.morphologyEx(enclosed.astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8)) > 0
 
 
 def _refine_edge(rgb: np.ndarray, found_small: np.ndarray) -> np.ndarray:
@@ -145,16 +278,16 @@ def _foreground(labels: np.ndarray) -> np.ndarray:
     return (labels == cv2.GC_FGD) | (labels == cv2.GC_PR_FGD)
 
 
-def _distance_to_border_colours(lab: np.ndarray, border_mask: np.ndarray, clusters: int = 6) -> np.ndarray:
-    """Each pixel's Lab distance to the nearest of a few border colour clusters."""
-    samples = np.ascontiguousarray(lab[border_mask].reshape(-1, 3))
+def _distance_to_colours(image: np.ndarray, samples: np.ndarray, clusters: int = 6) -> np.ndarray:
+    """Each pixel's distance to the nearest of a few k-means clusters of ``samples``' colours."""
+    samples = np.ascontiguousarray(samples.reshape(-1, 3)[:: max(1, len(samples) // MAX_CLUSTER_SAMPLES)], dtype=np.float32)
     k = min(clusters, len(samples))
     criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 20, 1.0)
     cv2.setRNGSeed(0)
     _, _, centres = cv2.kmeans(samples, k, None, criteria, 2, cv2.KMEANS_PP_CENTERS)
-    flat = lab.reshape(-1, 1, 3)
+    flat = image.reshape(-1, 1, 3)
     distance = np.sqrt(((flat - centres[None]) ** 2).sum(axis=2)).min(axis=1)
-    return distance.reshape(lab.shape[:2])
+    return distance.reshape(image.shape[:2])
 
 
 def _resize_mask(mask: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
