@@ -120,8 +120,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--resolution", type=int, default=256, help="side of the square images (default: 256)")
     p.set_defaults(run=_cmd_synth)
 
-    p = sub.add_parser("train", help="train the learned frontal gate or subtype classifier on `synth` data", description="Train a small CNN on the masked object crops of a `frontal3d synth` folder (CPU), print held-out accuracy after each epoch and write a checkpoint. Use it with the family setting weights = {frontal = \"CKPT\"} (or subtype).")
-    p.add_argument("task", choices=["frontal", "subtype"])
+    p = sub.add_parser("train", help="train a learned model (frontal gate, subtype, object segmenter, regions) on `synth` data", description="Train on a `frontal3d synth` folder (CPU), print the held-out score after each epoch and write a checkpoint. frontal, subtype: a small CNN on the masked object crop (held-out accuracy). segmenter: a small U-Net from the whole photo to the object's mask; regions: the same network from the object crop to the family's regions (held-out IoU). Use a checkpoint with the family setting weights = {TASK = \"CKPT\"}.")
+    p.add_argument("task", choices=["frontal", "subtype", "segmenter", "regions"])
     p.add_argument("--data", type=Path, required=True, help="folder written by `frontal3d synth`")
     p.add_argument("-o", "--out", type=Path, required=True, help="checkpoint to write (.pt)")
     p.add_argument("--epochs", type=int, default=8)
@@ -303,14 +303,20 @@ def _cmd_synth(args: argparse.Namespace) -> int:
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
-    from frontal3d.train import load_dataset, train
+    from frontal3d.learned import DENSE_TASKS
+    from frontal3d.train import load_dataset, load_dense_dataset, train
 
     if args.epochs < 1:
         raise ConfigError("--epochs must be at least 1")
-    dataset = load_dataset(args.data, args.task)
-    print(f"{args.task} classifier for {dataset.family}: {len(dataset.targets)} samples, classes {', '.join(dataset.classes)}")
+    if args.task in DENSE_TASKS:
+        dataset = load_dense_dataset(args.data, args.task, _plugins(args).family)
+        what = "object segmenter" if args.task == "segmenter" else "region model"
+    else:
+        dataset = load_dataset(args.data, args.task)
+        what = f"{args.task} classifier"
+    print(f"{what} for {dataset.family}: {len(dataset.targets)} samples, classes {', '.join(dataset.classes)}")
     result = train(dataset, args.task, args.out, epochs=args.epochs, seed=args.seed)
-    print(f"wrote {args.out} (held-out accuracy {result.held_out_accuracy[-1]:.3f} on {result.held_out_count} samples)")
+    print(f"wrote {args.out} (held-out {result.metric} {result.held_out_accuracy[-1]:.3f} on {result.held_out_count} samples)")
     print(f"use it with: [families.{dataset.family}] weights = {{{args.task} = \"{args.out.resolve()}\"}} in plugins.toml")
     return 0
 

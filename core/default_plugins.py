@@ -11,7 +11,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from frontal3d import hookimpl, learned, occluders
+from frontal3d import hookimpl, learned, learned_dense, occluders
 from frontal3d.back_rules import BUILTIN_BACK_RULES
 from frontal3d.family import Family
 from frontal3d.stages import classify, mesh, regions, segment
@@ -23,6 +23,13 @@ def frontal3d_segment(image: np.ndarray, family: Family, settings: dict[str, Any
     if hints.get("mask") is not None:
         return hints["mask"]
     return segment.mask_from_alpha(image)
+
+
+@hookimpl(specname="frontal3d_segment")
+def learned_segmenter(image: np.ndarray, family: Family, settings: dict[str, Any], hints: dict[str, Any]) -> np.ndarray | None:
+    """The learned segmenter when the family's ``weights`` name one (refined on the photo's edges), else pass."""
+    model = learned_dense.configured_model(settings, "segmenter", family)
+    return None if model is None else model.object_mask(image[..., :3])
 
 
 @hookimpl(trylast=True, specname="frontal3d_segment")
@@ -39,8 +46,8 @@ def frontal3d_classifiers(family: Family) -> list[classify.Classifier]:
 
 @hookimpl(trylast=True)
 def frontal3d_segment_regions(image: np.ndarray, object_mask: np.ndarray, transferred_regions: np.ndarray, family: Family, subtype: str, settings: dict[str, Any]) -> np.ndarray | None:
-    """Transfer the aligned template's regions, refined by colour and a graph cut."""
-    return regions.refine_regions(image, object_mask, transferred_regions, len(family.regions[subtype]))
+    """The aligned template's regions (or the learned region model's, when configured), refined by colour and a graph cut."""
+    return regions.segment_regions(image, object_mask, transferred_regions, family, subtype, settings)
 
 
 @hookimpl

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Callable
 
 import cv2
 import numpy as np
@@ -36,7 +36,13 @@ ARCHITECTURE = "compact_resnet_v1"
 INPUT_SIZE = 128
 #: Channel widths of the four residual stages (about 0.3 M parameters, 1.2 MB).
 WIDTHS = (16, 32, 64, 128)
-TASKS = ("frontal", "subtype")
+#: Whole-object classifiers (this module) and dense per-pixel models (:mod:`frontal3d.learned_dense`).
+CLASSIFIER_TASKS = ("frontal", "subtype")
+DENSE_TASKS = ("segmenter", "regions")
+TASKS = CLASSIFIER_TASKS + DENSE_TASKS
+#: The dense tasks' small encoder-decoder.
+DENSE_ARCHITECTURE = "tiny_unet_v1"
+ARCHITECTURES = {**{task: ARCHITECTURE for task in CLASSIFIER_TASKS}, **{task: DENSE_ARCHITECTURE for task in DENSE_TASKS}}
 #: Class names of the frontal gate, in output order.
 GATE_CLASSES = ("not frontal", "frontal")
 #: Margin around the object's box kept in the crop, as a fraction of its long side.
@@ -46,25 +52,34 @@ REFERENCE_TOLERANCE = 1e-3
 _REQUIRED_KEYS = ("format_version", "task", "family", "classes", "input_size", "architecture", "widths", "state_dict", "reference_input", "reference_probabilities")
 
 
+def crop_square(mask: np.ndarray) -> tuple[int, int, int]:
+    """(top, left, side) of the square around the object's box plus margin; it may reach outside the image."""
+    ys, xs = np.nonzero(mask)
+    side = int(max(np.ptp(ys), np.ptp(xs)) + 1)
+    side += 2 * int(np.ceil(CROP_MARGIN * side))
+    centre_y, centre_x = (ys.min() + ys.max() + 1) // 2, (xs.min() + xs.max() + 1) // 2
+    return int(centre_y - side // 2), int(centre_x - side // 2), side
+
+
+def cut_square(array: np.ndarray, top: int, left: int, side: int) -> np.ndarray:
+    """``array[top:top+side, left:left+side]``, zero-padded where the square leaves the image."""
+    square = np.zeros((side, side) + array.shape[2:], array.dtype)
+    src_y0, src_x0 = max(0, top), max(0, left)
+    src_y1, src_x1 = min(array.shape[0], top + side), min(array.shape[1], left + side)
+    square[src_y0 - top : src_y1 - top, src_x0 - left : src_x1 - left] = array[src_y0:src_y1, src_x0:src_x1]
+    return square
+
+
 def object_crop(image: np.ndarray, mask: np.ndarray, size: int = INPUT_SIZE) -> np.ndarray:
     """The object alone on black, its box (plus margin) padded to a square and resized: size x size x 3 uint8.
 
     Training and prediction both go through here, so the network sees the same kind of input.
     """
     mask = np.asarray(mask, dtype=bool)
-    ys, xs = np.nonzero(mask)
-    if len(ys) == 0:
+    if not mask.any():
         return np.zeros((size, size, 3), np.uint8)
-    side = int(max(np.ptp(ys), np.ptp(xs)) + 1)
-    side += 2 * int(np.ceil(CROP_MARGIN * side))
-    centre_y, centre_x = (ys.min() + ys.max() + 1) // 2, (xs.min() + xs.max() + 1) // 2
-    square = np.zeros((side, side, 3), np.uint8)
-    y0, x0 = centre_y - side // 2, centre_x - side // 2
-    src_y0, src_x0 = max(0, y0), max(0, x0)
-    src_y1, src_x1 = min(mask.shape[0], y0 + side), min(mask.shape[1], x0 + side)
     object_only = np.where(mask[..., None], image[..., :3], 0).astype(np.uint8)
-    square[src_y0 - y0 : src_y1 - y0, src_x0 - x0 : src_x1 - x0] = object_only[src_y0:src_y1, src_x0:src_x1]
-    return cv2.resize(square, (size, size), interpolation=cv2.INTER_AREA)
+    return cv2.resize(cut_square(object_only, *crop_square(mask)), (size, size), interpolation=cv2.INTER_AREA)
 
 
 def to_tensor(crops: np.ndarray) -> "torch.Tensor":
@@ -75,8 +90,8 @@ def to_tensor(crops: np.ndarray) -> "torch.Tensor":
 
 
 @dataclass
-class LearnedClassifier:
-    """A loaded checkpoint: predicts one of ``classes`` from a photo and the object's mask."""
+class LoadedModel:
+    """A loaded checkpoint: its network and what it was trained for (``training``: epochs, held-out score...)."""
 
     path: Path
     task: str
@@ -85,6 +100,10 @@ class LearnedClassifier:
     input_size: int
     model: "torch.nn.Module"
     training: dict[str, Any]
+
+
+class LearnedClassifier(LoadedModel):
+    """A loaded classifier: predicts one of ``classes`` from a photo and the object's mask."""
 
     def probabilities(self, image: np.ndarray, mask: np.ndarray) -> np.ndarray:
         """Class probabilities, in ``classes`` order."""
@@ -110,71 +129,84 @@ def load_classifier(path: Path | str, task: str | None = None, family: Family | 
     Raises :class:`ConfigError` with a one-line message for a missing, unreadable,
     corrupt or mismatched checkpoint (wrong task, family or classes).
     """
-    import torch
-
     from frontal3d.train import CompactResNet
 
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError(f"weights file not found: {path}")
-    try:
-        checkpoint = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as exc:  # a damaged file fails inside zipfile, pickle or torch with many exception types
-        raise ConfigError(f"{path}: not a readable frontal3d checkpoint ({_one_line(exc)})") from exc
-    if not isinstance(checkpoint, dict) or any(key not in checkpoint for key in _REQUIRED_KEYS):
-        raise ConfigError(f"{path}: not a frontal3d checkpoint (written by `frontal3d train`)")
-    if checkpoint["format_version"] != FORMAT_VERSION or checkpoint["architecture"] != ARCHITECTURE:
-        raise ConfigError(
-            f"{path}: checkpoint format {checkpoint['format_version']} / {checkpoint['architecture']} is not the supported "
-            f"{FORMAT_VERSION} / {ARCHITECTURE}; retrain it with `frontal3d train`"
-        )
-    if task is not None and checkpoint["task"] != task:
-        raise ConfigError(f"{path}: this checkpoint classifies {checkpoint['task']!r}, but it is configured as the {task!r} weights")
+    checkpoint = read_checkpoint(path, task)
+    if checkpoint["task"] not in CLASSIFIER_TASKS:
+        raise ConfigError(f"{path}: a {checkpoint['task']!r} checkpoint is not a classifier")
     if family is not None:
-        _check_family(path, checkpoint, family)
+        gate = checkpoint["task"] == "frontal"
+        check_family(path, checkpoint, family, list(GATE_CLASSES) if gate else sorted(family.subtypes), "gate" if gate else "subtypes")
     classes = [str(c) for c in checkpoint["classes"]]
     model = CompactResNet(len(classes), tuple(int(w) for w in checkpoint["widths"]))
     try:
         model.load_state_dict(checkpoint["state_dict"])
     except (RuntimeError, KeyError, TypeError) as exc:
-        raise ConfigError(f"{path}: weights do not fit the {ARCHITECTURE} network ({_one_line(exc)})") from exc
+        raise ConfigError(f"{path}: weights do not fit the {ARCHITECTURE} network ({one_line(exc)})") from exc
     model.eval()
     classifier = LearnedClassifier(path, checkpoint["task"], checkpoint["family"], classes, int(checkpoint["input_size"]), model, dict(checkpoint.get("training", {})))
-    try:
-        replayed = classifier.probabilities_of_crop(checkpoint["reference_input"].numpy())
-        reproduced = np.allclose(replayed, checkpoint["reference_probabilities"], atol=REFERENCE_TOLERANCE)
-    except (AttributeError, RuntimeError, ValueError) as exc:
-        raise ConfigError(f"{path}: corrupt checkpoint: its reference input cannot be replayed ({_one_line(exc)})") from exc
-    if not reproduced:
-        raise ConfigError(f"{path}: corrupt checkpoint: it no longer reproduces its stored reference prediction")
+    check_reference(path, lambda: classifier.probabilities_of_crop(checkpoint["reference_input"].numpy()), checkpoint["reference_probabilities"])
     return classifier
 
 
-def _check_family(path: Path, checkpoint: dict[str, Any], family: Family) -> None:
+def read_checkpoint(path: Path, task: str | None) -> dict[str, Any]:
+    """The checkpoint dict at ``path``, refused with a one-line ConfigError when missing, corrupt, of another format or task."""
+    import torch
+
+    if not path.is_file():
+        raise ConfigError(f"weights file not found: {path}")
+    try:
+        checkpoint = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as exc:  # a damaged file fails inside zipfile, pickle or torch with many exception types
+        raise ConfigError(f"{path}: not a readable frontal3d checkpoint ({one_line(exc)})") from exc
+    if not isinstance(checkpoint, dict) or any(key not in checkpoint for key in _REQUIRED_KEYS):
+        raise ConfigError(f"{path}: not a frontal3d checkpoint (written by `frontal3d train`)")
+    expected = ARCHITECTURES.get(checkpoint["task"])
+    if checkpoint["format_version"] != FORMAT_VERSION or checkpoint["architecture"] != expected:
+        raise ConfigError(
+            f"{path}: checkpoint format {checkpoint['format_version']} / {checkpoint['architecture']} is not the supported "
+            f"{FORMAT_VERSION} / {expected}; retrain it with `frontal3d train`"
+        )
+    if task is not None and checkpoint["task"] != task:
+        raise ConfigError(f"{path}: this checkpoint classifies {checkpoint['task']!r}, but it is configured as the {task!r} weights")
+    return checkpoint
+
+
+def check_reference(path: Path, replay: Callable[[], np.ndarray], reference: Any) -> None:
+    """Refuse a checkpoint whose network no longer gives the stored reference output (damaged weights)."""
+    try:
+        reproduced = np.allclose(replay(), np.asarray(reference, dtype=np.float64), atol=REFERENCE_TOLERANCE)
+    except (AttributeError, RuntimeError, ValueError, TypeError) as exc:
+        raise ConfigError(f"{path}: corrupt checkpoint: its reference input cannot be replayed ({one_line(exc)})") from exc
+    if not reproduced:
+        raise ConfigError(f"{path}: corrupt checkpoint: it no longer reproduces its stored reference prediction")
+
+
+def check_family(path: Path, checkpoint: dict[str, Any], family: Family, expected: list[str], what: str) -> None:
+    """Refuse a checkpoint trained for another family, or whose classes are not the family's ``what``."""
     if checkpoint["family"] != family.name:
         raise ConfigError(f"{path}: trained for family {checkpoint['family']!r}, not {family.name!r}")
-    expected = list(GATE_CLASSES) if checkpoint["task"] == "frontal" else sorted(family.subtypes)
     if sorted(checkpoint["classes"]) != sorted(expected):
         raise ConfigError(
-            f"{path}: classes {', '.join(checkpoint['classes'])} do not match the {family.name} family's "
-            f"{'gate' if checkpoint['task'] == 'frontal' else 'subtypes'} {', '.join(expected)}"
+            f"{path}: classes {', '.join(checkpoint['classes'])} do not match the {family.name} family's {what} {', '.join(expected)}"
         )
 
 
-def _one_line(exc: BaseException) -> str:
+def one_line(exc: BaseException) -> str:
     text = " ".join(str(exc).split()) or type(exc).__name__
     return text if len(text) <= 160 else text[:157] + "..."
 
 
-_LOADED: dict[tuple[str, str, str, float], LearnedClassifier] = {}
+_LOADED: dict[tuple[str, str, str, float], Any] = {}
 
 
-def cached_classifier(path: Path | str, task: str, family: Family) -> LearnedClassifier:
-    """:func:`load_classifier`, once per file version, task and family per process (a batch reuses the network)."""
+def cached_model(path: Path | str, task: str, family: Family, loader: Callable[[Path, str, Family], Any] | None = None) -> Any:
+    """``loader`` (default :func:`load_classifier`), once per file version, task and family per process (a batch reuses the network)."""
     path = Path(path)
     key = (str(path.resolve()), task, family.name, path.stat().st_mtime if path.is_file() else 0.0)
     if key not in _LOADED:
-        _LOADED[key] = load_classifier(path, task, family)
+        _LOADED[key] = (loader or load_classifier)(path, task, family)
     return _LOADED[key]
 
 
@@ -195,7 +227,7 @@ class WeightsOrDefault:
         weights = context.settings.get("weights") or {}
         if not weights.get(self.name):
             return self.default.classify(context)
-        model = cached_classifier(weights[self.name], self.name, context.family)
+        model = cached_model(weights[self.name], self.name, context.family)
         source = f"learned model {model.path.name}"
         if self.name == "subtype":
             label, confidence, runner_up, runner_up_confidence = model.predict(context.image, context.object_mask)

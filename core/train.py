@@ -1,8 +1,10 @@
-"""Training the learned frontal gate and subtype classifier on data made by ``frontal3d synth``.
+"""Training the learned models on data made by ``frontal3d synth``.
 
-CPU-only and small on purpose: the crops are computed once and held in memory, the
-network is :class:`CompactResNet` (defined here, loaded by :mod:`frontal3d.learned`),
-and a fixed share of the samples is held out (never trained on) to report accuracy.
+The frontal gate and subtype classifier (:class:`CompactResNet`, loaded by
+:mod:`frontal3d.learned`) and the dense object and region segmenters (:class:`TinyUNet`,
+loaded by :mod:`frontal3d.learned_dense`). CPU-only and small on purpose: the inputs are
+computed once and held in memory, and a fixed share of the samples is held out (never
+trained on) to report accuracy or IoU after every epoch.
 """
 
 from __future__ import annotations
@@ -16,15 +18,20 @@ import cv2
 import numpy as np
 import torch
 from torch import nn
+from torch.nn import functional
 from tqdm import tqdm
 
 from frontal3d.errors import ConfigError, InputError
-from frontal3d.learned import ARCHITECTURE, FORMAT_VERSION, GATE_CLASSES, INPUT_SIZE, TASKS, WIDTHS, object_crop, to_tensor
+from frontal3d.family import Family
+from frontal3d.learned import ARCHITECTURES, CLASSIFIER_TASKS, DENSE_TASKS, FORMAT_VERSION, GATE_CLASSES, INPUT_SIZE, WIDTHS, crop_square, cut_square, object_crop, to_tensor
+from frontal3d.learned_dense import DENSE_INPUT_SIZE, DENSE_WIDTHS, SEGMENTER_CLASSES, dense_probabilities, family_region_names, letterbox, regions_input
 from frontal3d.synth import read_labels
 
 #: Share of the samples held out for the accuracy report.
 HOLD_OUT = 0.15
 BATCH_SIZE = 64
+#: The dense networks keep a full-resolution activation per layer: smaller batches.
+DENSE_BATCH_SIZE = 32
 LEARNING_RATE = 2e-3
 
 
@@ -60,22 +67,53 @@ class CompactResNet(nn.Module):
         return self.head(self.stages(self.stem(x)).mean(dim=(2, 3)))
 
 
-def save_checkpoint(path: Path, model: CompactResNet, task: str, family: str, classes: list[str], reference_crop: np.ndarray, extra: dict[str, Any] | None = None) -> None:
-    """Write a checkpoint (layout: :mod:`frontal3d.learned`) with ``reference_crop``'s probabilities as the reference."""
-    model.eval()
-    with torch.no_grad():
-        probabilities = torch.softmax(model(to_tensor(reference_crop[None])), dim=1)[0]
+def _conv_block(in_channels: int, out_channels: int) -> nn.Sequential:
+    return nn.Sequential(
+        nn.Conv2d(in_channels, out_channels, 3, 1, 1, bias=False), nn.BatchNorm2d(out_channels), nn.ReLU(inplace=True),
+        nn.Conv2d(out_channels, out_channels, 3, 1, 1, bias=False), nn.BatchNorm2d(out_channels), nn.ReLU(inplace=True),
+    )
+
+
+class TinyUNet(nn.Module):
+    """A four-level U-Net (about 0.23 M parameters): per-pixel class logits at the input's resolution."""
+
+    def __init__(self, in_channels: int, num_classes: int, widths: tuple[int, ...] = DENSE_WIDTHS):
+        super().__init__()
+        self.down = nn.ModuleList(_conv_block(c_in, c_out) for c_in, c_out in zip((in_channels,) + widths[:-1], widths))
+        self.up = nn.ModuleList(_conv_block(widths[i + 1] + widths[i], widths[i]) for i in reversed(range(len(widths) - 1)))
+        self.head = nn.Conv2d(widths[0], num_classes, 1)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        skips = []
+        for level, block in enumerate(self.down):
+            x = block(functional.max_pool2d(x, 2) if level else x)
+            skips.append(x)
+        for block, skip in zip(self.up, reversed(skips[:-1])):
+            x = functional.interpolate(x, size=skip.shape[-2:], mode="bilinear", align_corners=False)
+            x = block(torch.cat([x, skip], dim=1))
+        return self.head(x)
+
+
+def save_checkpoint(path: Path, model: nn.Module, task: str, family: str, classes: list[str], reference_input: np.ndarray, extra: dict[str, Any] | None = None) -> None:
+    """Write a checkpoint (layout: :mod:`frontal3d.learned`) with ``reference_input``'s output as the reference."""
+    dense = task in DENSE_TASKS
+    if dense:
+        reference = torch.from_numpy(dense_probabilities(model, reference_input[None])[0].astype(np.float32))
+    else:
+        model.eval()
+        with torch.no_grad():
+            reference = torch.softmax(model(to_tensor(reference_input[None])), dim=1)[0].tolist()
     checkpoint = {
         "format_version": FORMAT_VERSION,
         "task": task,
         "family": family,
         "classes": list(classes),
-        "input_size": int(reference_crop.shape[0]),
-        "architecture": ARCHITECTURE,
-        "widths": list(WIDTHS),
+        "input_size": int(reference_input.shape[0]),
+        "architecture": ARCHITECTURES[task],
+        "widths": list(DENSE_WIDTHS if dense else WIDTHS),
         "state_dict": model.state_dict(),
-        "reference_input": torch.from_numpy(np.ascontiguousarray(reference_crop)),
-        "reference_probabilities": probabilities.tolist(),
+        "reference_input": torch.from_numpy(np.ascontiguousarray(reference_input)),
+        "reference_probabilities": reference,
         "training": dict(extra or {}),
     }
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -84,7 +122,11 @@ def save_checkpoint(path: Path, model: CompactResNet, task: str, family: str, cl
 
 @dataclass
 class Dataset:
-    """Crops (N x S x S x 3 uint8), class indices and class names of one task."""
+    """Network inputs (N x S x S x C uint8), targets and class names of one task.
+
+    Targets are class indices: one per sample for the classifiers, one per pixel
+    (N x S x S, -1 = not scored) for the dense tasks.
+    """
 
     family: str
     classes: list[str]
@@ -94,11 +136,12 @@ class Dataset:
 
 @dataclass
 class TrainingResult:
-    """Held-out accuracy after each epoch, and the sample counts."""
+    """Held-out score after each epoch (accuracy for classifiers, mean IoU for dense tasks), and the sample counts."""
 
     train_count: int
     held_out_count: int
     held_out_accuracy: list[float] = field(default_factory=list)
+    metric: str = "accuracy"
 
 
 def load_dataset(data_dir: Path, task: str, size: int = INPUT_SIZE) -> Dataset:
@@ -106,14 +149,9 @@ def load_dataset(data_dir: Path, task: str, size: int = INPUT_SIZE) -> Dataset:
 
     The subtype classifier runs only after the gate accepted, so it learns from frontal views.
     """
-    if task not in TASKS:
-        raise ConfigError(f"unknown task {task!r} (tasks: {', '.join(TASKS)})")
-    if not (data_dir / "labels.csv").is_file():
-        raise InputError(f"{data_dir}: no labels.csv (make the data with `frontal3d synth`)")
-    rows = read_labels(data_dir)
-    families = sorted({row["family"] for row in rows})
-    if len(families) != 1:
-        raise InputError(f"{data_dir}/labels.csv: expected samples of one family, found {', '.join(families) or 'none'}")
+    if task not in CLASSIFIER_TASKS:
+        raise ConfigError(f"unknown task {task!r} (tasks: {', '.join(CLASSIFIER_TASKS)})")
+    rows, families = _read_rows(data_dir)
     if task == "subtype":
         rows = [row for row in rows if row["frontal"] == "1"]
         classes = sorted({row["subtype"] for row in rows})
@@ -127,57 +165,120 @@ def load_dataset(data_dir: Path, task: str, size: int = INPUT_SIZE) -> Dataset:
     return Dataset(family=families[0], classes=classes, crops=crops, targets=np.asarray(targets, np.int64))
 
 
-def _crop(data_dir: Path, name: str, size: int) -> np.ndarray:
+def _read_rows(data_dir: Path) -> tuple[list[dict[str, str]], list[str]]:
+    """labels.csv's rows and its one family name (a data set of several families is refused)."""
+    if not (data_dir / "labels.csv").is_file():
+        raise InputError(f"{data_dir}: no labels.csv (make the data with `frontal3d synth`)")
+    rows = read_labels(data_dir)
+    families = sorted({row["family"] for row in rows})
+    if len(families) != 1:
+        raise InputError(f"{data_dir}/labels.csv: expected samples of one family, found {', '.join(families) or 'none'}")
+    return rows, families
+
+
+def load_dense_dataset(data_dir: Path, task: str, family_of: Callable[[str], Family], size: int = DENSE_INPUT_SIZE) -> Dataset:
+    """Read a ``frontal3d synth`` folder for a dense task, every sample (frontal or turned).
+
+    ``family_of`` looks up the family labels.csv names. ``segmenter``: the letterboxed photo and its object mask. ``regions``: the object crop
+    plus mask and its region map, relabelled from each subtype's region indices to the
+    family's region set (:func:`frontal3d.learned_dense.family_region_names`).
+    """
+    if task not in DENSE_TASKS:
+        raise ConfigError(f"unknown task {task!r} (tasks: {', '.join(DENSE_TASKS)})")
+    rows, families = _read_rows(data_dir)
+    family = family_of(families[0])
+    classes = list(SEGMENTER_CLASSES) if task == "segmenter" else family_region_names(family)
+    # per subtype: its region index -> index in the family's region set (background, -1, stays -1)
+    relabel = {} if task == "segmenter" else {
+        subtype: np.array([classes.index(name) for name in family.regions[subtype]] + [-1]) for subtype in family.subtypes
+    }
+    inputs, targets = [], []
+    for row in rows:
+        image, mask = _read_sample(data_dir, row["file"])
+        if task == "segmenter":
+            inputs.append(letterbox(image, size)[0])
+            targets.append((letterbox(mask.astype(np.uint8) * 255, size)[0] > 127).astype(np.int64))
+        else:
+            regions = cv2.imread(str(data_dir / "regions" / row["file"]), cv2.IMREAD_GRAYSCALE).astype(np.int64) - 1
+            crop = regions_input(image, mask, size)
+            crop_regions = cv2.resize(cut_square(regions + 1, *crop_square(mask)).astype(np.uint8), (size, size), interpolation=cv2.INTER_NEAREST)
+            inputs.append(crop)
+            targets.append(relabel[row["subtype"]][crop_regions.astype(np.int64) - 1])
+    return Dataset(family=family.name, classes=classes, crops=np.stack(inputs), targets=np.stack(targets))
+
+
+def _read_sample(data_dir: Path, name: str) -> tuple[np.ndarray, np.ndarray]:
     image = cv2.imread(str(data_dir / "images" / name), cv2.IMREAD_COLOR)
     mask = cv2.imread(str(data_dir / "masks" / name), cv2.IMREAD_GRAYSCALE)
     if image is None or mask is None:
         raise InputError(f"{data_dir}: cannot read images/{name} or masks/{name}")
-    return object_crop(cv2.cvtColor(image, cv2.COLOR_BGR2RGB), mask > 0, size)
+    return cv2.cvtColor(image, cv2.COLOR_BGR2RGB), mask > 0
+
+
+def _crop(data_dir: Path, name: str, size: int) -> np.ndarray:
+    return object_crop(*_read_sample(data_dir, name), size)
 
 
 def train(dataset: Dataset, task: str, out: Path, epochs: int = 8, seed: int = 0,
           log: Callable[[str], None] = print, show_progress: bool | None = None) -> TrainingResult:
-    """Train a :class:`CompactResNet` on ``dataset``, print held-out accuracy per epoch, write the checkpoint to ``out``."""
+    """Train the task's network on ``dataset``, print the held-out score per epoch, write the checkpoint to ``out``.
+
+    Classifiers (:class:`CompactResNet`) report accuracy; dense tasks (:class:`TinyUNet`)
+    report IoU pooled over the held-out pixels: the object's for the segmenter, the mean
+    over regions for the region model.
+    """
+    dense = task in DENSE_TASKS
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
     order = rng.permutation(len(dataset.targets))
     held_count = max(1, int(round(HOLD_OUT * len(order))))
     held, kept = order[:held_count], order[held_count:]
-    model = CompactResNet(len(dataset.classes))
+    scored_classes = [SEGMENTER_CLASSES.index("object")] if task == "segmenter" else list(range(len(dataset.classes)))
+    if dense:
+        model: nn.Module = TinyUNet(dataset.crops.shape[-1], len(dataset.classes))
+        loss_of = nn.CrossEntropyLoss(ignore_index=-1)
+        metric = "IoU" if task == "segmenter" else "mean region IoU"
+    else:
+        model = CompactResNet(len(dataset.classes))
+        loss_of = nn.CrossEntropyLoss(label_smoothing=0.05)
+        metric = "accuracy"
+    batch_size = DENSE_BATCH_SIZE if dense else BATCH_SIZE
     optimiser = torch.optim.AdamW(model.parameters(), lr=LEARNING_RATE, weight_decay=1e-4)
-    steps = max(1, epochs * int(np.ceil(len(kept) / BATCH_SIZE)))
+    steps = max(1, epochs * int(np.ceil(len(kept) / batch_size)))
     schedule = torch.optim.lr_scheduler.OneCycleLR(optimiser, max_lr=LEARNING_RATE, total_steps=steps)
-    loss_of = nn.CrossEntropyLoss(label_smoothing=0.05)
-    result = TrainingResult(train_count=len(kept), held_out_count=len(held))
+    result = TrainingResult(train_count=len(kept), held_out_count=len(held), metric=metric)
     show = sys.stderr.isatty() if show_progress is None else show_progress
     for epoch in range(1, epochs + 1):
         model.train()
         rng.shuffle(kept)
-        batches = [kept[i : i + BATCH_SIZE] for i in range(0, len(kept), BATCH_SIZE)]
+        batches = [kept[i : i + batch_size] for i in range(0, len(kept), batch_size)]
         bar = tqdm(batches, desc=f"epoch {epoch}/{epochs}", unit="batch", file=sys.stderr, disable=not show, leave=False)
         for batch in bar:
-            inputs = _augment(to_tensor(dataset.crops[batch]), rng)
-            loss = loss_of(model(inputs), torch.from_numpy(dataset.targets[batch]))
+            inputs, targets = _augment(to_tensor(dataset.crops[batch]), torch.from_numpy(dataset.targets[batch]), rng)
+            loss = loss_of(model(inputs), targets)
             optimiser.zero_grad()
             loss.backward()
             optimiser.step()
             schedule.step()
             bar.set_postfix(loss=f"{loss.item():.3f}")
-        accuracy = evaluate(model, dataset.crops[held], dataset.targets[held])
-        result.held_out_accuracy.append(accuracy)
-        log(f"epoch {epoch}/{epochs}: held-out accuracy {accuracy:.3f} ({len(held)} samples)")
+        inputs, targets = dataset.crops[held], dataset.targets[held]
+        result.held_out_accuracy.append(held_out_iou(model, inputs, targets, scored_classes) if dense else evaluate(model, inputs, targets))
+        log(f"epoch {epoch}/{epochs}: held-out {metric} {result.held_out_accuracy[-1]:.3f} ({len(held)} samples)")
     training = {"epochs": epochs, "seed": seed, "train_samples": len(kept), "held_out_samples": len(held),
-                "held_out_accuracy": result.held_out_accuracy[-1] if result.held_out_accuracy else None}
+                f"held_out_{metric.replace(' ', '_')}": result.held_out_accuracy[-1] if result.held_out_accuracy else None}
     save_checkpoint(out, model, task, dataset.family, dataset.classes, dataset.crops[held[0]], training)
     return result
 
 
-def _augment(inputs: torch.Tensor, rng: np.random.Generator) -> torch.Tensor:
-    """Mirror half the batch left-right and jitter brightness: a photo's object may face either way."""
+def _augment(inputs: torch.Tensor, targets: torch.Tensor, rng: np.random.Generator) -> tuple[torch.Tensor, torch.Tensor]:
+    """Mirror half the batch left-right (per-pixel targets too) and jitter the colours' brightness: a photo's object may face either way."""
     flip = torch.from_numpy(rng.random(len(inputs)) < 0.5)
     inputs = torch.where(flip[:, None, None, None], inputs.flip(3), inputs)
+    if targets.ndim == 3:
+        targets = torch.where(flip[:, None, None], targets.flip(2), targets)
     gain = torch.from_numpy(rng.uniform(0.75, 1.25, size=(len(inputs), 1, 1, 1))).float()
-    return (inputs * gain).clamp(0.0, 1.0)
+    colours = (inputs[:, :3] * gain).clamp(0.0, 1.0)
+    return torch.cat([colours, inputs[:, 3:]], dim=1), targets
 
 
 def evaluate(model: nn.Module, crops: np.ndarray, targets: np.ndarray) -> float:
@@ -189,3 +290,20 @@ def evaluate(model: nn.Module, crops: np.ndarray, targets: np.ndarray) -> float:
             predicted = model(to_tensor(crops[start : start + 256])).argmax(dim=1).numpy()
             correct += int((predicted == targets[start : start + 256]).sum())
     return correct / max(1, len(crops))
+
+
+def held_out_iou(model: nn.Module, inputs: np.ndarray, targets: np.ndarray, classes: list[int]) -> float:
+    """Mean over ``classes`` (those present) of each class's IoU pooled over all scored pixels (target >= 0)."""
+    model.eval()
+    intersections, unions = np.zeros(len(classes)), np.zeros(len(classes))
+    with torch.no_grad():
+        for start in range(0, len(inputs), 64):
+            predicted = model(to_tensor(inputs[start : start + 64])).argmax(dim=1).numpy()
+            truth = targets[start : start + 64]
+            scored = truth >= 0
+            for i, label in enumerate(classes):
+                predicted_label, true_label = (predicted == label) & scored, truth == label
+                intersections[i] += (predicted_label & true_label).sum()
+                unions[i] += (predicted_label | true_label).sum()
+    present = unions > 0
+    return float((intersections[present] / unions[present]).mean()) if present.any() else 0.0

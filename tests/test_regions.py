@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from frontal3d.errors import InputError
-from frontal3d.stages.regions import reconstruct_region_map, refine_regions
+from frontal3d.family import Family
+from frontal3d.stages.regions import reconstruct_region_map, refine_regions, segment_regions
 
 
 def _two_colour_object(shape: tuple[int, int] = (240, 320)) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -76,3 +77,13 @@ def test_reconstruct_region_map_fills_a_hole_and_keeps_one_component_per_region(
 def test_mismatched_region_map_is_an_input_error():
     with pytest.raises(InputError, match="region map"):
         refine_regions(np.zeros((20, 30, 3), np.uint8), np.ones((20, 30), bool), np.zeros((20, 31), np.int32), 2)
+
+
+def test_segment_regions_without_weights_refines_the_transferred_template_regions():
+    image, mask, truth = _two_colour_object()
+    family = Family(name="toy", subtypes=("one",), canonical_view="front", regions={"one": ("top", "disc")}, real_size={"one": 1.0})
+    shifted = np.where(mask, np.roll(truth, 6, axis=1), -1)
+    shifted[mask & (shifted < 0)] = 0
+    found = segment_regions(image, mask, shifted, family, "one", {"weights": {}})
+    np.testing.assert_array_equal(found, refine_regions(image, mask, shifted, 2))
+    assert _accuracy(found, truth, mask) > 0.97

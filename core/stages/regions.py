@@ -5,16 +5,22 @@ of a guitar is where the template's bridge landed, give or take the shape differ
 colour models per region, learned from the prior's eroded cores, then move region
 boundaries onto the image's colour changes with a graph cut (alpha-expansion, Potts
 smoothness), and a distance term keeps each region near where the template put it.
+With a learned region model configured (``weights = {regions = "..."}``), its prediction
+replaces the template's as the prior and the same refinement runs on it.
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 import cv2
 import maxflow
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
+from frontal3d import learned_dense
 from frontal3d.errors import InputError
+from frontal3d.family import Family
 
 #: Cost that forbids a label (alpha-expansion needs finite costs).
 _FORBIDDEN = 1e6
@@ -64,6 +70,15 @@ def reconstruct_region_map(region_map: np.ndarray, object_mask: np.ndarray, fill
     result = np.where(object_mask, np.array(labels)[np.maximum(solved, 0)], -1)
     # A filled gap can touch a region only through its small parts; keep the main pieces.
     return _main_pieces_only(result.astype(np.int32), object_mask, labels)
+
+
+def segment_regions(image_rgb: np.ndarray, object_mask: np.ndarray, transferred_regions: np.ndarray, family: Family,
+                    subtype: str, settings: dict[str, Any]) -> np.ndarray:
+    """The object's region map: the learned model's prediction when configured, else the transferred template's, refined."""
+    region_names = family.regions[subtype]
+    model = learned_dense.configured_model(settings, "regions", family)
+    prior = transferred_regions if model is None else model.region_map(image_rgb, object_mask, region_names)
+    return refine_regions(image_rgb, object_mask, prior, len(region_names))
 
 
 def refine_regions(

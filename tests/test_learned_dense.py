@@ -1,0 +1,149 @@
+"""Learned object and region segmenters: training by the CLI, checkpoints, the segment chain and the regions stage."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from frontal3d.cli import main
+from frontal3d.errors import ConfigError
+from frontal3d.learned_dense import dense_probabilities, family_region_names, load_dense
+from frontal3d.plugins import Plugins
+from frontal3d.stages.regions import segment_regions
+from frontal3d.synth import render_sample
+
+SHIPPED = Path(__file__).resolve().parents[1] / "families" / "car" / "weights" / "segmenter.pt"
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    """A 40-sample car data set at 64 px and two-epoch segmenter and region checkpoints trained on it by the CLI."""
+    root = tmp_path_factory.mktemp("dense")
+    data = root / "data"
+    assert main(["synth", "--family", "car", "-n", "40", "-o", str(data), "--seed", "3", "--resolution", "64"]) == 0
+    checkpoints = {task: root / f"{task}.pt" for task in ("segmenter", "regions")}
+    for task, path in checkpoints.items():
+        assert main(["train", task, "--data", str(data), "-o", str(path), "--epochs", "2"]) == 0
+    return {"data": data, **checkpoints}
+
+
+@pytest.fixture(scope="module")
+def car():
+    plugins = Plugins()
+    return plugins, plugins.family("car")
+
+
+def _photo(seed: int, resolution: int = 96) -> tuple[np.ndarray, np.ndarray]:
+    """A generated car photo (random colours, light and background) and its true mask."""
+    plugins, family = Plugins(), Plugins().family("car")
+    template = plugins.hook.frontal3d_template(family=family, subtype="sedan", settings=plugins.settings("car"))
+    sample = render_sample(template, np.random.default_rng([seed, 0]), resolution)
+    return sample.image, sample.mask
+
+
+def _one_line_config_error(path: Path, task: str, family=None) -> str:
+    with pytest.raises(ConfigError) as error:
+        load_dense(path, task, family)
+    message = str(error.value)
+    assert "\n" not in message and str(path) in message
+    return message
+
+
+def test_cli_trains_a_segmenter_printing_held_out_iou(trained, capsys, tmp_path):
+    out = tmp_path / "again.pt"
+    assert main(["train", "segmenter", "--data", str(trained["data"]), "-o", str(out), "--epochs", "1"]) == 0
+    printed = capsys.readouterr().out
+    assert "epoch 1/1: held-out IoU" in printed and "weights = {segmenter = " in printed and out.is_file()
+    with pytest.raises(SystemExit) as done:
+        main(["train", "--help"])
+    assert done.value.code == 0 and "segmenter" in capsys.readouterr().out
+
+
+def test_checkpoints_load_and_replay_their_stored_reference(trained, car):
+    _, family = car
+    for task, classes in (("segmenter", ["background", "object"]), ("regions", family_region_names(family))):
+        model = load_dense(trained[task], task, family)
+        assert model.task == task and model.classes == classes and model.family == "car"
+        stored = torch.load(trained[task], weights_only=True)
+        replayed = dense_probabilities(model.model, stored["reference_input"].numpy()[None])[0]
+        np.testing.assert_allclose(replayed, stored["reference_probabilities"].numpy(), atol=1e-4)
+        assert replayed.shape == stored["reference_input"].shape[:2] + (len(classes),)
+
+
+def test_corrupt_truncated_and_wrong_task_checkpoints_are_one_line_errors(trained, car, tmp_path):
+    _, family = car
+    garbage = tmp_path / "garbage.pt"
+    garbage.write_bytes(b"not a checkpoint at all")
+    assert "not a readable frontal3d checkpoint" in _one_line_config_error(garbage, "segmenter")
+    truncated = tmp_path / "truncated.pt"
+    truncated.write_bytes(trained["segmenter"].read_bytes()[:5000])
+    assert "not a readable frontal3d checkpoint" in _one_line_config_error(truncated, "segmenter")
+    assert "classifies 'regions'" in _one_line_config_error(trained["regions"], "segmenter", family)
+    damaged = torch.load(trained["segmenter"], weights_only=True)
+    damaged["state_dict"]["head.weight"][1] += 0.5  # one class only: a shift of every logit would not change the softmax
+    torch.save(damaged, tmp_path / "damaged.pt")
+    assert "no longer reproduces" in _one_line_config_error(tmp_path / "damaged.pt", "segmenter", family)
+    assert "trained for family 'car', not 'guitar'" in _one_line_config_error(trained["segmenter"], "segmenter", Plugins().family("guitar"))
+
+
+def test_learned_segmenter_answers_in_the_chain_after_the_user_mask(trained, car):
+    plugins, family = car
+    image, truth = _photo(seed=11)
+    settings = {**plugins.settings("car"), "weights": {"segmenter": str(trained["segmenter"])}}
+    model = load_dense(trained["segmenter"], "segmenter", family)
+    learned = model.object_mask(image)
+    chained = plugins.hook.frontal3d_segment(image=image, family=family, settings=settings, hints={"mask": None})
+    assert chained.shape == truth.shape and chained.dtype == bool
+    if learned is not None:  # a two-epoch model may see no object; the chain then falls through to GrabCut
+        np.testing.assert_array_equal(chained, learned)
+    user_mask = np.zeros_like(truth)
+    user_mask[10:40, 20:70] = True
+    given = plugins.hook.frontal3d_segment(image=image, family=family, settings=settings, hints={"mask": user_mask})
+    np.testing.assert_array_equal(given, user_mask)
+    broken = {**settings, "weights": {"segmenter": str(trained["regions"])}}
+    with pytest.raises(ConfigError, match="classifies 'regions'"):
+        plugins.hook.frontal3d_segment(image=image, family=family, settings=broken, hints={"mask": None})
+
+
+def test_learned_regions_seed_the_graph_cut_with_the_subtypes_regions(trained, car):
+    plugins, family = car
+    image, truth = _photo(seed=12)
+    transferred = np.where(truth, 0, -1)
+    settings = {**plugins.settings("car"), "weights": {"regions": str(trained["regions"])}}
+    found = segment_regions(image, truth, transferred, family, "sedan", settings)
+    assert found.shape == truth.shape and (found[~truth] == -1).all()
+    assert (found[truth] >= 0).all() and found.max() < len(family.regions["sedan"])
+
+
+def test_without_weights_torch_is_never_imported():
+    code = (
+        "import sys, numpy as np\n"
+        "from frontal3d.plugins import Plugins\n"
+        "from frontal3d.stages.regions import segment_regions\n"
+        "plugins = Plugins(); family = plugins.family('car'); settings = plugins.settings('car')\n"
+        "image = np.full((80, 120, 3), 230, np.uint8); image[20:60, 20:100] = (200, 30, 30); image[40:60, 20:100] = (20, 20, 20)\n"
+        "mask = plugins.hook.frontal3d_segment(image=image, family=family, settings=settings, hints={'mask': None})\n"
+        "regions = segment_regions(image, mask, np.where(mask, 0, -1), family, 'sedan', settings)\n"
+        "assert mask.sum() > 2000 and (regions[mask] >= 0).all()\n"
+        "print('torch' in sys.modules)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=False)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "False"
+
+
+@pytest.mark.skipif(not SHIPPED.is_file(), reason="no shipped car segmenter")
+def test_shipped_car_segmenter_finds_a_generated_car(car):
+    _, family = car
+    model = load_dense(SHIPPED, "segmenter", family)
+    ious = []
+    for seed in (101, 102, 103):
+        image, truth = _photo(seed, resolution=256)
+        found = model.object_mask(image)
+        ious.append(0.0 if found is None else (found & truth).sum() / (found | truth).sum())
+    assert min(ious) > 0.95, ious
