@@ -287,16 +287,32 @@ def _reconstruct_shape_and_texture(
 
 
 def _segment(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dict[str, Any], user_mask: np.ndarray | None, report: Report) -> np.ndarray:
-    found = plugins.hook.frontal3d_segment(image=rgb, family=fam, settings=settings, hints={"mask": user_mask})
-    if user_mask is not None:
-        report.data["segmenter"] = "user mask"
-    elif rgb.shape[2] == 4 and segment.mask_from_alpha(rgb) is not None:
-        report.data["segmenter"] = "alpha channel"
-    else:
-        report.data["segmenter"] = "segmenter chain"
+    """Ask the segmenter chain (first answer wins) and name the segmenter that answered in the report.
+
+    The chain's implementations are called here in pluggy's own first-result order (last
+    registered and ``tryfirst`` first), so the report can say which one produced the mask.
+    """
+    arguments = {"image": rgb, "family": fam, "settings": settings, "hints": {"mask": user_mask}}
+    found = None
+    for impl in reversed(plugins.pm.hook.frontal3d_segment.get_hookimpls()):
+        found = impl.function(**{name: arguments[name] for name in impl.argnames})
+        if found is not None:
+            report.data["segmenter"] = _segmenter_name(impl, user_mask, settings)
+            break
     if found is None or not np.asarray(found).any():
         raise NoObjectError(f"no {fam.name} found in the image (give a mask with --mask if the object is there)")
     return np.asarray(found, dtype=bool)
+
+
+def _segmenter_name(impl: Any, user_mask: np.ndarray | None, settings: dict[str, Any]) -> str:
+    """What report.json calls the segmenter that answered."""
+    if impl.plugin_name != "frontal3d":
+        return f"plugin {impl.plugin_name} ({impl.function.__name__})"
+    if impl.function.__name__ == "learned_segmenter":
+        return f"learned segmenter ({settings['weights']['segmenter']})"
+    if impl.function.__name__ == "classical_segmenter":
+        return "GrabCut (training-free)"
+    return "user mask" if user_mask is not None else "alpha channel"
 
 
 def _choose_object(found: np.ndarray, occluders: np.ndarray | None, fam: Family, report: Report) -> np.ndarray:

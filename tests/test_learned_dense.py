@@ -6,9 +6,12 @@ import subprocess
 import sys
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 import torch
+
+import frontal3d
 
 from frontal3d.cli import main
 from frontal3d.errors import ConfigError
@@ -18,6 +21,7 @@ from frontal3d.stages.regions import segment_regions
 from frontal3d.synth import render_sample
 
 SHIPPED = Path(__file__).resolve().parents[1] / "families" / "car" / "weights" / "segmenter.pt"
+EXAMPLE_JPG = Path(__file__).resolve().parents[1] / "examples" / "sportscar.jpg"
 
 
 @pytest.fixture(scope="module")
@@ -108,6 +112,15 @@ def test_learned_segmenter_answers_in_the_chain_after_the_user_mask(trained, car
     broken = {**settings, "weights": {"segmenter": str(trained["regions"])}}
     with pytest.raises(ConfigError, match="classifies 'regions'"):
         plugins.hook.frontal3d_segment(image=image, family=family, settings=broken, hints={"mask": None})
+
+
+def test_report_names_the_segmenter_that_answered(car):
+    plugins, _family = car
+    photo = cv2.cvtColor(cv2.imread(str(EXAMPLE_JPG)), cv2.COLOR_BGR2RGB)
+    learned = frontal3d.reconstruct(photo, "car", plugins=plugins, weights={"segmenter": str(SHIPPED)})
+    assert learned.report["segmenter"] == f"learned segmenter ({SHIPPED})"
+    classical = frontal3d.reconstruct(photo, "car", plugins=plugins)
+    assert classical.report["segmenter"] == "GrabCut (training-free)"
 
 
 def test_learned_regions_seed_the_graph_cut_with_the_subtypes_regions(trained, car):
