@@ -132,10 +132,11 @@ def reconstruct(
             found = _segment(plugins, rgb, fam, fam_settings, user_mask, report)
             occluders = occlusion.find_occluders(plugins, rgb, found, fam_settings, user_occluders)
             object_mask = _choose_object(found, occluders, fam, report)
-            probable = _probable_shape(object_mask, occluders)
+            touching = _touching(occluders, object_mask)
+            probable = _probable_shape(object_mask, touching)
         with report.stage(f"classify[{fam.name}]" if len(candidates) > 1 else "classify", progress):
             try:
-                hidden = occlusion.hidden_by(_touching(occluders, object_mask), object_mask) if probable is not object_mask else None
+                hidden = occlusion.hidden_by(touching, object_mask) if touching.any() else None
                 decisions, picked_subtype, renders_by_subtype, context = _classify(plugins, rgb, probable, fam, fam_settings, subtype, hidden)
             except NotFrontalError as exc:
                 if len(candidates) == 1:
@@ -236,7 +237,7 @@ def _reconstruct_shape_and_texture(
 
     with report.stage("mesh", progress):
         pixel_size = renders.pixel_size / similarity.scale
-        relative_scale = _depth_scale(warped.local_scale / similarity.scale, work_mask, settings["depth_scale"], _length_ratio(work_mask, renders.mask, similarity))
+        relative_scale = _depth_scale(warped.local_scale / similarity.scale, work_mask, settings["depth_scale"], renders.mask, similarity)
         front_z = warped.front_depth * relative_scale
         back_z = warped.back_depth * relative_scale
         rule = _rule(plugins.hook.frontal3d_symmetry_rules(), settings["symmetry"], "symmetry")
@@ -374,11 +375,11 @@ def _touching(occluders: np.ndarray | None, mask: np.ndarray) -> np.ndarray:
     return np.isin(labels, touching[touching > 0])
 
 
-def _probable_shape(object_mask: np.ndarray, occluders: np.ndarray | None) -> np.ndarray:
+def _probable_shape(object_mask: np.ndarray, touching: np.ndarray) -> np.ndarray:
     """The object as the classifiers and the alignment should see it: the visible mask plus
-    the occluded pixels inside its convex hull (an arm across a guitar body hides body,
-    not background); the exact outline is rebuilt later from the aligned template."""
-    touching = _touching(occluders, object_mask)
+    the occluded pixels (of the occluders ``touching`` it) inside its convex hull (an arm
+    across a guitar body hides body, not background); the exact outline is rebuilt later
+    from the aligned template."""
     if not touching.any():
         return object_mask
     points = cv2.findNonZero(object_mask.astype(np.uint8))
@@ -501,7 +502,7 @@ def _to_working(array: np.ndarray, crop: _Crop, interpolation: int) -> np.ndarra
     return cv2.resize(cropped, (w, h), interpolation=interpolation)
 
 
-def _depth_scale(relative_scale: np.ndarray, mask: np.ndarray, mode: str, length_ratio: float) -> np.ndarray:
+def _depth_scale(relative_scale: np.ndarray, mask: np.ndarray, mode: str, template_mask: np.ndarray, similarity: align.Similarity) -> np.ndarray:
     """How much to scale the template's depth at each pixel (paper 3.2.5: "we scale the Z
     dimension accordingly"): ``local`` follows the warp's local stretch, ``smooth`` the
     same blurred over a tenth of the object, ``global`` only the alignment's scale,
@@ -510,7 +511,7 @@ def _depth_scale(relative_scale: np.ndarray, mask: np.ndarray, mode: str, length
     if mode == "global":
         return np.ones_like(relative_scale)
     if mode == "length":
-        return np.full_like(relative_scale, length_ratio)
+        return np.full_like(relative_scale, _length_ratio(mask, template_mask, similarity))
     if mode == "smooth":
         sigma = 0.1 * max(mask.shape)
         weight = cv2.GaussianBlur(mask.astype(np.float32), (0, 0), sigma)

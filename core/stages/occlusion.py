@@ -21,9 +21,10 @@ from frontal3d.stages.classify import Agreement, ClassifierContext
 from frontal3d.stages.regions import reconstruct_region_map
 from scipy.ndimage import binary_fill_holes
 
-#: Reach of an occluder, as a fraction of the image's long side: template pixels this
-#: close to an occluder may join the silhouette, and object boundary this close to one
-#: counts as occluded (its true course is unknown there).
+#: Reach of an occluder, as a fraction of the working image's long side (the object's size,
+#: for :func:`hidden_by` on the full image): template pixels this close to an occluder may
+#: join the silhouette, and object boundary this close to one counts as occluded (its true
+#: course is unknown there).
 OCCLUDER_REACH = 0.02
 #: Occluded boundary runs separated by fewer visible points than this are one part.
 MIN_VISIBLE_GAP = 4

@@ -69,22 +69,21 @@ def split_objects(mask: np.ndarray) -> list[np.ndarray]:
     return [labels == (i + 1) for i in order if areas[i] >= floor]
 
 
-def grabcut_segment(image: np.ndarray, shape_prior: np.ndarray | None = None, iterations: int = 5) -> np.ndarray | None:
+def grabcut_segment(image: np.ndarray, iterations: int = 5) -> np.ndarray | None:
     """Segment the object(s) in front of a plain, graded or mildly cluttered background.
 
     A smooth background (a low-order polynomial per Lab channel, fitted robustly from
     the border inwards) is subtracted, so a light-grey object on a light gradient stands
     out as much as a red one on white. Pixels far from that model seed GrabCut, which
     runs on the flattened image at a working size; its edge is then refined in a thin
-    band at full resolution. ``shape_prior`` (a bool mask of where the object probably
-    is) adds its interior and rules out what lies far outside it. Returns None when
+    band at full resolution. Returns None when
     nothing object-like stands out (under 1 % of the image, or a region touching all
     four borders, which is background the model could not explain). A uniform frame
     around the picture (a print border, a letterbox) is set aside first.
     """
     rgb = np.ascontiguousarray(image[..., :3], dtype=np.uint8)
     rows, cols = _inside_frame(rgb)
-    inner = _segment_unframed(np.ascontiguousarray(rgb[rows, cols]), None if shape_prior is None else shape_prior[rows, cols], iterations)
+    inner = _segment_unframed(np.ascontiguousarray(rgb[rows, cols]), iterations)
     if inner is None:
         return None
     mask = np.zeros(rgb.shape[:2], bool)
@@ -92,7 +91,7 @@ def grabcut_segment(image: np.ndarray, shape_prior: np.ndarray | None = None, it
     return mask
 
 
-def _segment_unframed(rgb: np.ndarray, shape_prior: np.ndarray | None, iterations: int) -> np.ndarray | None:
+def _segment_unframed(rgb: np.ndarray, iterations: int) -> np.ndarray | None:
     """:func:`grabcut_segment` on a picture whose border is its background."""
     height, width = rgb.shape[:2]
     scale = min(1.0, GRABCUT_SIZE / max(height, width))
@@ -102,7 +101,7 @@ def _segment_unframed(rgb: np.ndarray, shape_prior: np.ndarray | None, iteration
     border = _border_mask(small.shape[:2])
     background = _smooth_background(lab, border)
     flattened = np.clip(lab - background + background[border].mean(axis=0), 0, 255).astype(np.uint8)
-    init = _initial_labels(lab, background, border, None if shape_prior is None else _resize_mask(shape_prior, small.shape[:2]))
+    init = _initial_labels(lab, background, border)
     if init is None:
         return None
     _grabcut(flattened, init, iterations)
@@ -168,7 +167,7 @@ def _smooth_background(lab: np.ndarray, border: np.ndarray) -> np.ndarray:
     return (basis @ coefficients.astype(np.float32)).reshape(lab.shape)
 
 
-def _initial_labels(lab: np.ndarray, background: np.ndarray, border_mask: np.ndarray, prior: np.ndarray | None) -> np.ndarray | None:
+def _initial_labels(lab: np.ndarray, background: np.ndarray, border_mask: np.ndarray) -> np.ndarray | None:
     """GrabCut's initial label map; None when no pixel differs from the background.
 
     Probable foreground: what the background model cannot explain (weak differences
@@ -207,10 +206,6 @@ def _initial_labels(lab: np.ndarray, background: np.ndarray, border_mask: np.nda
     near = cv2.dilate(salient.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1,) * 2)) > 0
     init[~near] = cv2.GC_BGD
     init[salient] = cv2.GC_PR_FGD
-    if prior is not None and prior.any():
-        near_prior = cv2.dilate(prior.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1,) * 2)) > 0
-        init[~near_prior] = cv2.GC_BGD
-        init[prior & near_prior] = cv2.GC_PR_FGD
     init[border_mask] = cv2.GC_BGD
     if (init == cv2.GC_PR_FGD).mean() < MIN_FOREGROUND / 2:
         return None
@@ -288,10 +283,6 @@ def _distance_to_colours(image: np.ndarray, samples: np.ndarray, clusters: int =
     flat = image.reshape(-1, 1, 3)
     distance = np.sqrt(((flat - centres[None]) ** 2).sum(axis=2)).min(axis=1)
     return distance.reshape(image.shape[:2])
-
-
-def _resize_mask(mask: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
-    return cv2.resize(np.asarray(mask, dtype=np.uint8), (shape[1], shape[0]), interpolation=cv2.INTER_NEAREST) > 0
 
 
 def _touches_all_borders(mask: np.ndarray) -> bool:
