@@ -292,14 +292,20 @@ def _segment(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dict[str,
 
     The chain's implementations are called here in pluggy's own first-result order (last
     registered and ``tryfirst`` first), so the report can say which one produced the mask.
+    A plugin that wraps the hook needs pluggy's own call; the report then names the chain.
     """
     arguments = {"image": rgb, "family": fam, "settings": settings, "hints": {"mask": user_mask}}
+    impls = plugins.pm.hook.frontal3d_segment.get_hookimpls()
     found = None
-    for impl in reversed(plugins.pm.hook.frontal3d_segment.get_hookimpls()):
-        found = impl.function(**{name: arguments[name] for name in impl.argnames})
-        if found is not None:
-            report.data["segmenter"] = _segmenter_name(impl, user_mask, settings)
-            break
+    if any(impl.hookwrapper or impl.wrapper for impl in impls):
+        found = plugins.hook.frontal3d_segment(**arguments)
+        report.data["segmenter"] = "segmenter chain (wrapped by a plugin)"
+    else:
+        for impl in reversed(impls):
+            found = impl.function(**{name: arguments[name] for name in impl.argnames})
+            if found is not None:
+                report.data["segmenter"] = _segmenter_name(impl, user_mask, settings)
+                break
     if found is None or not np.asarray(found).any():
         raise NoObjectError(f"no {fam.name} found in the image (give a mask with --mask if the object is there)")
     return np.asarray(found, dtype=bool)

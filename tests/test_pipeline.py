@@ -141,3 +141,24 @@ def test_length_depth_keeps_a_wide_span_plane_as_deep_as_it_is_long(plugins):
     by_alignment = frontal3d.reconstruct(wide, "airplane", subtype="light", plugins=plugins, depth_scale="global")
     assert _fuselage_depth_over_length(by_length.mesh) == pytest.approx(expected, rel=0.08)
     assert _fuselage_depth_over_length(by_alignment.mesh) > 1.15 * expected
+
+
+class _CountingSegmentWrapper:
+    """A plugin wrapping the segment hook (as a timing or logging plugin would)."""
+
+    calls = 0
+
+    @frontal3d.hookimpl(wrapper=True)
+    def frontal3d_segment(self, image, family, settings, hints):
+        type(self).calls += 1
+        return (yield)
+
+
+def test_a_plugin_wrapping_the_segmenter_chain_still_gets_the_mask():
+    wrapped = Plugins()
+    wrapped.pm.register(_CountingSegmentWrapper(), name="wrapper")
+    rgba, _ = _template_photo(wrapped, "car", "sedan")
+    result = frontal3d.reconstruct(rgba, "car", subtype="sedan", plugins=wrapped)
+    assert _CountingSegmentWrapper.calls == 1
+    assert result.report["segmenter"] == "segmenter chain (wrapped by a plugin)"
+    assert result.mesh.is_watertight
