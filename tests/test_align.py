@@ -122,3 +122,34 @@ def test_empty_mask_is_an_input_error():
         align_template(template, np.zeros((100, 100), bool))
     with pytest.raises(InputError, match="grey"):
         align_template(template, template, template_grey=np.zeros((10, 10)))
+
+
+def planform(length: float, span: float, chord: float, shape: tuple[int, int], angle: float) -> np.ndarray:
+    """A plane seen from above, nose up: a fuselage, a wing at a third of the length, a tailplane."""
+    pieces = [
+        [(-0.06 * length, -0.5 * length), (0.06 * length, -0.5 * length), (0.06 * length, 0.5 * length), (-0.06 * length, 0.5 * length)],
+        [(-0.5 * span, -0.1 * length), (0.5 * span, -0.1 * length), (0.5 * span, -0.1 * length + chord), (-0.5 * span, -0.1 * length + chord)],
+        [(-0.15 * span, 0.35 * length), (0.15 * span, 0.35 * length), (0.15 * span, 0.45 * length), (-0.15 * span, 0.45 * length)],
+    ]
+    place = Similarity(1.0, angle, shape[1] / 2.0, shape[0] / 2.0)
+    return np.any([draw(place.apply(np.array(p, dtype=float)), shape) for p in pieces], axis=0)
+
+
+def test_a_symmetric_template_lands_on_the_objects_mirror_axis():
+    """A long-bodied template on a plane twice as wide as long overlays best turned by 90 degrees
+    (fuselage along the wings); the mirror axis of both keeps the fuselage on the fuselage."""
+    template = planform(length=200.0, span=150.0, chord=40.0, shape=(300, 300), angle=0.0)
+    for turn_deg in (0.0, 30.0):
+        obj = planform(length=110.0, span=240.0, chord=30.0, shape=(400, 400), angle=np.deg2rad(turn_deg))
+        sim, diagnostics = align_template(template, obj)
+        axis_error = min(angle_error_deg(sim.angle, np.deg2rad(turn_deg)), angle_error_deg(sim.angle, np.deg2rad(turn_deg) + np.pi))
+        assert axis_error < 8.0, (turn_deg, np.rad2deg(sim.angle))
+        assert diagnostics["placed_on_mirror_axis"]
+
+
+def test_an_aligned_symmetric_object_keeps_its_placement():
+    template = planform(length=200.0, span=150.0, chord=40.0, shape=(300, 300), angle=0.0)
+    obj = planform(length=220.0, span=170.0, chord=45.0, shape=(400, 400), angle=np.deg2rad(-50.0))
+    sim, diagnostics = align_template(template, obj)
+    assert angle_error_deg(sim.angle, np.deg2rad(-50.0)) < 3.0
+    assert not diagnostics["placed_on_mirror_axis"]

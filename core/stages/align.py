@@ -6,6 +6,9 @@ overlap, then a gradient-free search refines all four parameters by maximising t
 mutual information between the warped template and the object (masks, plus grey
 images when given), as the paper's "rigid registration based on mutual information".
 No mirror candidates are tried: templates are symmetric about their vertical axis.
+When the template is mirror-symmetric and the object clearly is too, the template's
+axis must land on the object's mirror axis: a plane whose span exceeds its length
+otherwise overlays best turned by 90 degrees, its fuselage along the wings.
 
 Everything here is in pixel coordinates: (x, y) = (col, row), y pointing down,
 pixel centres at integers (the same convention as ``cv2.warpAffine``).
@@ -32,6 +35,20 @@ ANGLE_STEP = np.deg2rad(6.0)
 SCALE_FACTORS = (0.85, 1.0, 1.15)
 #: How many of the best coarse candidates get an MI refinement.
 REFINED_CANDIDATES = 3
+#: Mirror IoU (a mask against its reflection) above which an object counts as mirror-symmetric;
+#: shared airplane planforms score 0.86-0.99 about their fuselage, at most 0.59 across it.
+SYMMETRIC_MIRROR_IOU = 0.85
+#: The same for templates, which are symmetric by construction (airplanes, guitars: 1.0);
+#: a car's side view is not, though a sedan's scores 0.84 about its vertical axis.
+SYMMETRIC_TEMPLATE_MIRROR_IOU = 0.97
+#: How much more symmetric the object must be about its own axis than about the placed
+#: template's axis before the placement is redone along the object's axis.
+AXIS_MISMATCH_MARGIN = 0.15
+#: Step of the sweep for the object's mirror axis, the grid it runs on, and how far the
+#: redone refinement may turn away from that axis.
+AXIS_STEP = np.deg2rad(2.0)
+MIRROR_GRID = 128
+AXIS_WINDOW = np.deg2rad(10.0)
 
 
 @dataclass(frozen=True)
@@ -108,7 +125,8 @@ def align_template(template_mask: np.ndarray, object_mask: np.ndarray,
     ``max_angle`` bounds the in-plane rotation searched (radians, either way), for
     families whose objects are always near upright. Returns the similarity and
     diagnostics: ``iou`` (full-resolution mask overlap), ``mutual_information``
-    (nats, at the refinement grid), ``coarse_iou`` (best candidate of the sweep) and
+    (nats, at the refinement grid), ``coarse_iou`` (best candidate of the sweep),
+    ``placed_on_mirror_axis`` (the placement was redone along the object's mirror axis) and
     ``seconds``.
     """
     start = time.perf_counter()
@@ -129,15 +147,25 @@ def align_template(template_mask: np.ndarray, object_mask: np.ndarray,
 
     coarse = _GridView(obj, obj_centroid, half_side, COARSE_GRID)
     candidates = _coarse_candidates(tpl, coarse, tpl_centroid, obj_centroid, scale0,
-                                    obj_axis - tpl_axis, max_angle)
+                                    _sweep_angles(obj_axis - tpl_axis, max_angle))
     coarse_iou = candidates[0][0]
 
     refined = [_refine_mi(tpl, coarse, bins, sim, tpl_centroid, max_angle, xtol=0.2)
                for _, sim in candidates[:REFINED_CANDIDATES]]
     best_mi, best = max(refined, key=lambda r: r[0])
+    angle_window = None
+    axis_angle = _mismatched_mirror_axis(template_mask, tpl_centroid, object_mask, obj_centroid, half_side, best.angle)
+    if axis_angle is not None:
+        on_axis = [float(np.angle(np.exp(1j * a))) for a in (axis_angle, axis_angle + np.pi)]
+        on_axis = [a for a in on_axis if abs(a) <= max_angle]
+        if on_axis:
+            angle_window = AXIS_WINDOW
+            candidates = _coarse_candidates(tpl, coarse, tpl_centroid, obj_centroid, scale0, on_axis)
+            best_mi, best = max((_refine_mi(tpl, coarse, bins, sim, tpl_centroid, max_angle, xtol=0.2, angle_window=angle_window)
+                                 for _, sim in candidates), key=lambda r: r[0])
     fine_grid = int(np.clip(np.ceil(2.0 * half_side), COARSE_GRID, MAX_FINE_GRID))
     fine = _GridView(obj, obj_centroid, half_side, fine_grid)
-    best_mi, best = _refine_mi(tpl, fine, bins, best, tpl_centroid, max_angle, xtol=0.05)
+    best_mi, best = _refine_mi(tpl, fine, bins, best, tpl_centroid, max_angle, xtol=0.05, angle_window=angle_window)
 
     warped = warp_mask(template_mask, best, object_mask.shape)
     inter = np.count_nonzero(warped & object_mask)
@@ -146,6 +174,7 @@ def align_template(template_mask: np.ndarray, object_mask: np.ndarray,
         "iou": float(inter / union),
         "mutual_information": float(best_mi),
         "coarse_iou": float(coarse_iou),
+        "placed_on_mirror_axis": angle_window is not None,
         "seconds": time.perf_counter() - start,
     }
     return best, diagnostics
@@ -176,6 +205,36 @@ def _intensity_map(mask: np.ndarray, grey: np.ndarray | None, what: str) -> np.n
     lo, hi = float(inside.min()), float(inside.max())
     norm = (grey - lo) / (hi - lo) if hi > lo else np.ones_like(grey)
     return np.where(mask, 0.25 + 0.75 * np.clip(norm, 0.0, 1.0), 0.0).astype(np.float32)
+
+
+def _mirror_iou(mask: np.ndarray, centre: np.ndarray, axis_angle: float) -> float:
+    """IoU of a bool mask with its reflection about the line through ``centre`` along the
+    template's vertical axis turned by ``axis_angle`` (direction (-sin, cos))."""
+    direction = np.array([-np.sin(axis_angle), np.cos(axis_angle)])
+    reflection = 2.0 * np.outer(direction, direction) - np.eye(2)
+    matrix = np.column_stack([reflection, centre - reflection @ centre])
+    mirrored = cv2.warpAffine(mask.astype(np.uint8), matrix, (mask.shape[1], mask.shape[0]), flags=cv2.INTER_NEAREST,
+                              borderMode=cv2.BORDER_CONSTANT, borderValue=0) > 0
+    return np.count_nonzero(mask & mirrored) / max(np.count_nonzero(mask | mirrored), 1)
+
+
+def _mismatched_mirror_axis(template_mask: np.ndarray, tpl_centroid: np.ndarray, object_mask: np.ndarray,
+                            obj_centroid: np.ndarray, half_side: float, placed_angle: float) -> float | None:
+    """The rotation that puts a mirror-symmetric template's axis on the object's mirror axis,
+    when the placement at ``placed_angle`` missed that axis; None when it did not, or when
+    the template or the object is not clearly symmetric (a car's side view)."""
+    if _mirror_iou(template_mask, tpl_centroid, 0.0) < SYMMETRIC_TEMPLATE_MIRROR_IOU:
+        return None
+    view = _GridView(_MapPyramid(object_mask.astype(np.float32)), obj_centroid, half_side, MIRROR_GRID)
+    grid_mask = view.object.reshape(MIRROR_GRID, MIRROR_GRID) > 0.5
+    centre = np.full(2, (MIRROR_GRID - 1) / 2.0)
+    axes = np.arange(0.0, np.pi, AXIS_STEP)
+    scores = np.array([_mirror_iou(grid_mask, centre, a) for a in axes])
+    best = int(np.argmax(scores))
+    placed = _mirror_iou(grid_mask, centre, placed_angle)
+    if scores[best] < SYMMETRIC_MIRROR_IOU or scores[best] - placed < AXIS_MISMATCH_MARGIN:
+        return None
+    return float(axes[best])
 
 
 def _mask_moments(mask: np.ndarray) -> tuple[np.ndarray, float, float]:
@@ -225,15 +284,21 @@ class _GridView:
         return tpl.warp(self.image_to_grid.compose(sim).matrix, self.grid).ravel()
 
 
-def _coarse_candidates(tpl: _MapPyramid, view: _GridView, tpl_centroid: np.ndarray, obj_centroid: np.ndarray,
-                       scale0: float, axis_angle: float, max_angle: float) -> list[tuple[float, Similarity]]:
-    """Overlap-ranked (IoU, similarity) candidates, centroids matched, angles at least 15 degrees apart."""
+def _sweep_angles(axis_angle: float, max_angle: float) -> list[float]:
+    """The coarse sweep's rotations: a regular step within ``max_angle``, plus the two that
+    turn the template's principal axis onto the object's."""
     n_steps = int(np.floor(max_angle / ANGLE_STEP))
     angles = list(ANGLE_STEP * np.arange(-n_steps, n_steps + 1))
     for a in (axis_angle, axis_angle + np.pi):
         a = float(np.angle(np.exp(1j * a)))
         if abs(a) <= max_angle:
             angles.append(a)
+    return angles
+
+
+def _coarse_candidates(tpl: _MapPyramid, view: _GridView, tpl_centroid: np.ndarray, obj_centroid: np.ndarray,
+                       scale0: float, angles: list[float]) -> list[tuple[float, Similarity]]:
+    """Overlap-ranked (IoU, similarity) candidates, centroids matched, angles at least 15 degrees apart."""
     obj_in = view.object > 0.5
     scored = []
     for angle in angles:
@@ -273,8 +338,9 @@ def _mutual_information(tpl_values: np.ndarray, obj_bins: np.ndarray, obj_counts
 
 
 def _refine_mi(tpl: _MapPyramid, view: _GridView, bins: int, start: Similarity, tpl_centroid: np.ndarray,
-               max_angle: float, xtol: float) -> tuple[float, Similarity]:
+               max_angle: float, xtol: float, angle_window: float | None = None) -> tuple[float, Similarity]:
     """Powell search of (log scale, angle, shift) maximising MI, rotating about the template centroid.
+    ``angle_window`` keeps the angle that close to the start's (a placement fixed to the mirror axis).
 
     Parameters are expressed in grid pixels of displacement at the object's rim, so one
     unit of each moves the silhouette by about one grid pixel.
@@ -292,9 +358,10 @@ def _refine_mi(tpl: _MapPyramid, view: _GridView, bins: int, start: Similarity, 
     def cost(x: np.ndarray) -> float:
         return -_mutual_information(view.template(tpl, similarity(x)), obj_bins, obj_counts, bins)
 
-    angle_bounds = (None, None)
-    if max_angle < np.pi:
-        angle_bounds = ((-max_angle - start.angle) * rim, (max_angle - start.angle) * rim)
+    low, high = (-np.inf, np.inf) if max_angle >= np.pi else (-max_angle - start.angle, max_angle - start.angle)
+    if angle_window is not None:
+        low, high = max(low, -angle_window), min(high, angle_window)
+    angle_bounds = tuple(None if np.isinf(b) else b * rim for b in (low, high))
     reach = view.grid / 4.0  # the start is within a few grid pixels; this keeps line searches sane
     bounds = [(-np.log(2.0) * rim, np.log(2.0) * rim), angle_bounds, (-reach, reach), (-reach, reach)]
     result = minimize(cost, np.zeros(4), method="Powell", bounds=bounds,

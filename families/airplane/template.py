@@ -113,21 +113,27 @@ def _tip(surface: Surface, side: float) -> tuple[float, float, float]:
 
 
 def build_airliner() -> Template:
-    """A narrow-body twin jet: 38 m long, 35 m span, 4 m fuselage, swept wing at mid height, podded engines.
+    """A narrow-body twin jet: 38 m long, 35 m span, 4 m fuselage, low swept wing, podded engines.
 
-    Fin and wing heights are set so reconstructions match real airliner models in height/length
-    (0.245) and in how far the wing plane sits below the bounding-box centre (5 % of the length):
-    the point metrics centre on the box, so a wrong fin height shifts the whole wing plane.
+    The fin height matches real airliner models in height/length (0.245). The wing root sits in
+    the fuselage's lower third as on real airliners (at 40 % of the half-span the wing is 1 % of
+    the length below the fuselage's centre line on the shared models): at a 128^3 voxel IoU a wing
+    a few voxels off its real height misses it entirely (13 shared airliners: IoU 0.45 -> 0.54).
     """
     radius = 2.0
     body = fuselage(body_stations(19.0, -19.0, radius, radius, 6.0, 11.0, 0.9, 0.35))
-    main = Surface(root_leading_y=3.5, root_chord=7.0, tip_chord=1.6, span=17.5, sweep_y=8.5, z=0.2, rise=1.5, thickness=0.09)
+    main = Surface(root_leading_y=3.5, root_chord=7.0, tip_chord=1.6, span=17.5, sweep_y=8.5, z=-1.3, rise=1.5, thickness=0.09)
+    # The wing-body fairing fills the gap between the low wing root and the round fuselage
+    # above it (a ray from above would otherwise cross the plane twice); it is no wider than
+    # the fuselage outside the wing's root chord, so the planform does not change.
+    fairing = fuselage([(-5.5, -0.7, 1.2, 0.5), (-4.0, -1.0, 1.9, 0.9), (-3.2, -1.0, 2.3, 1.0),
+                        (2.0, -1.0, 2.3, 1.0), (2.8, -1.0, 1.9, 0.9), (4.5, -0.7, 1.2, 0.5)])
     stabiliser = Surface(root_leading_y=-13.5, root_chord=3.8, tip_chord=1.3, span=6.3, sweep_y=3.6, z=0.6, rise=0.4, thickness=0.1)
     tail_fin = fin(0.5, 7.6, -11.5, 5.8, 1.8, 5.0)
     engine_x = 5.8
     engine_wing_z = main.z + main.rise * engine_x / main.span
     engines = [nacelle(side * engine_x, 5.0, 6.0, engine_wing_z - 0.6, 1.05) for side in (-1.0, 1.0)]
-    parts = [(body, "fuselage"), (wing(main), "wings"), (wing(stabiliser), "tail"), (tail_fin, "tail")]
+    parts = [(body, "fuselage"), (fairing, "fuselage"), (wing(main), "wings"), (wing(stabiliser), "tail"), (tail_fin, "tail")]
     parts += [(engine, "engines") for engine in engines]
     landmarks = {
         "nose": (0.0, 18.9, -0.1), "tail": (0.0, -18.9, 0.9),
@@ -160,9 +166,14 @@ def build_fighter() -> Template:
 
 
 def build_light() -> Template:
-    """A high-wing single-prop light aircraft: 8.3 m long, 11 m span, engine cowling at the nose."""
-    body = fuselage(body_stations(3.0, -4.6, 0.58, 0.72, 2.2, 4.4, 0.25, 0.12))
-    cowling = fuselage([(1.9, -0.05, 0.5, 0.55), (2.6, -0.1, 0.56, 0.6), (3.7, -0.15, 0.45, 0.45), (4.15, -0.15, 0.12, 0.12)])
+    """A single-prop light aircraft: 8.3 m long, 11 m span, engine cowling at the nose.
+
+    The fuselage is 1 m deep, less than a real cabin: the shared light-aircraft models are
+    slender (median depth 7.6 % of the length at the centre line, this template had 16 %), and
+    a shallower one raised their F-score (10 planes, after ICP: 61 -> 64 %).
+    """
+    body = fuselage(body_stations(3.0, -4.6, 0.58, 0.5, 2.2, 4.4, 0.25, 0.12))
+    cowling = fuselage([(1.9, -0.05, 0.5, 0.44), (2.6, -0.1, 0.56, 0.48), (3.7, -0.15, 0.45, 0.36), (4.15, -0.15, 0.12, 0.1)])
     main = Surface(root_leading_y=1.3, root_chord=1.6, tip_chord=1.2, span=5.5, sweep_y=0.2, z=0.05, rise=0.1, thickness=0.12)
     stabiliser = Surface(root_leading_y=-3.2, root_chord=1.25, tip_chord=0.8, span=1.7, sweep_y=0.3, z=0.25, thickness=0.09)
     tail_fin = fin(0.2, 1.35, -2.9, 1.5, 0.7, 0.9)
