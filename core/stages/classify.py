@@ -5,7 +5,8 @@ with each subtype's template render (scale, rotation, translation) and the overl
 (IoU) says how well a template in its canonical view explains the silhouette. A car
 seen from the front, or a guitar seen edge-on, agrees with no template: turning an
 object away from its canonical view narrows its silhouette, which no in-plane
-similarity can undo.
+similarity can undo. Smaller turns (30-60°) are caught by comparing the outline with
+the templates turned (:mod:`frontal3d.stages.turned_views`).
 """
 
 from __future__ import annotations
@@ -19,12 +20,17 @@ import numpy as np
 from frontal3d.family import Family
 from frontal3d.render import TemplateRenders
 from frontal3d.stages.align import Similarity, align_template, warp_labels
+from frontal3d.stages.turned_views import TurnEvidence, turn_evidence
 
 #: Long side, in pixels, of the masks compared by the silhouette classifiers.
 AGREEMENT_SIZE = 128
 #: Softmax temperature turning subtype scores (IoUs) into confidences: an IoU margin
 #: of 0.05 gives about 92 % / 8 %.
 SUBTYPE_TEMPERATURE = 0.02
+#: Default of the ``turned_margin`` setting: the frontal gate rejects when a turned template
+#: (30-90°) beats the best canonical-view template's outline agreement by more than this.
+#: Agreements are IoUs, so 1.0 never rejects (the test is off); cars use 0.0.
+TURNED_MARGIN = 1.0
 #: Region name of a template's dark opening (a classical guitar's sound hole).
 HOLE_REGION = "hole"
 #: How much a visible (or missing) dark opening adds to (or takes from) a subtype's score.
@@ -61,7 +67,8 @@ class Agreement:
 class ClassifierContext:
     """What every classifier may look at; silhouette agreements are computed once and shared.
 
-    ``settings`` needs ``max_angle_deg`` (rotation searched) and ``frontal_threshold``.
+    ``settings`` needs ``max_angle_deg`` (rotation searched) and ``frontal_threshold``;
+    ``turned_margin`` is optional (default :data:`TURNED_MARGIN`).
     """
 
     image: np.ndarray
@@ -70,6 +77,7 @@ class ClassifierContext:
     renders: dict[str, TemplateRenders]
     settings: dict[str, Any]
     _agreement: dict[str, Agreement] | None = field(default=None, repr=False)
+    _turn_evidence: TurnEvidence | None = field(default=None, repr=False)
 
     def agreement(self) -> dict[str, Agreement]:
         """Per subtype: IoU with the aligned template and the template -> image similarity."""
@@ -77,6 +85,13 @@ class ClassifierContext:
             max_angle = np.deg2rad(float(self.settings.get("max_angle_deg", 180.0)))
             self._agreement = silhouette_agreement(self.object_mask, self.renders, max_angle)
         return self._agreement
+
+    def turn_evidence(self) -> TurnEvidence:
+        """Best canonical-view vs best turned-view template agreement with the outline."""
+        if self._turn_evidence is None:
+            similarities = {subtype: found.similarity for subtype, found in self.agreement().items()}
+            self._turn_evidence = turn_evidence(self.object_mask, self.renders, similarities)
+        return self._turn_evidence
 
 
 class Classifier(Protocol):
@@ -107,12 +122,20 @@ def silhouette_agreement(object_mask: np.ndarray, renders: dict[str, TemplateRen
 class FrontalGate:
     """Rejects views too far from the family's canonical view (the paper allows about ±10°).
 
-    Score = best over subtypes of IoU x :func:`foreshortening`: IoU alone barely drops
-    when a car turns (a front view of a car is still a box) and thick objects keep
-    their area, but turning squashes the silhouette along one axis. Accepts when the
-    score reaches the family's ``frontal_threshold``; about 0.45 accepts every shared
-    mesh at 0-10° and rejects most at 60-90° (30° is not separable from shape
-    variation by silhouette alone).
+    Two silhouette tests, both training-free:
+
+    - score = best over subtypes of IoU x :func:`foreshortening` must reach the family's
+      ``frontal_threshold``: IoU alone barely drops when a car turns (a front view of a
+      car is still a box), but turning squashes the silhouette along one axis. This
+      catches views turned 60-90°.
+    - no template turned by 30-90° may explain the outline better than the templates in
+      their canonical view by more than ``turned_margin`` (see
+      :mod:`frontal3d.stages.turned_views`). This catches the 30-60° turns that
+      scale and shape variation hide from the first test; off (1.0) unless the family
+      sets it, since families whose shapes vary a lot (guitars, planes) would lose
+      frontal photos to it.
+
+    ``frontal_threshold`` 0 switches the gate off (evaluation runs on known-frontal data).
     """
 
     name = "frontal"
@@ -127,17 +150,22 @@ class FrontalGate:
         best = max(scores.values())
         threshold = float(context.settings["frontal_threshold"])
         family = context.family
-        accepted = best >= threshold
         view = family.view_hint or f"a {family.canonical_view} view"
-        reason = (
-            f"the {family.name} matches a {family.canonical_view} view (silhouette agreement {best:.2f} >= {threshold:.2f})"
-            if accepted
-            else f"the {family.name} is not seen in a {family.canonical_view} view (silhouette agreement {best:.2f} < "
-            f"{threshold:.2f}); this family needs {view}"
-        )
-        return Decision(
-            name=self.name, label="frontal" if accepted else "not frontal", confidence=best, accepted=accepted, reason=reason
-        )
+        if best < threshold:
+            reason = (f"the {family.name} is not seen in a {family.canonical_view} view (silhouette agreement {best:.2f} < "
+                      f"{threshold:.2f}); this family needs {view}")
+            return Decision(name=self.name, label="not frontal", confidence=best, accepted=False, reason=reason)
+        margin = float(context.settings.get("turned_margin", TURNED_MARGIN))
+        if threshold > 0 and margin < 1.0:
+            evidence = context.turn_evidence()
+            if evidence.margin < -margin:
+                direction = "sideways" if evidence.turned_axis == "yaw" else "up or down"
+                reason = (f"the {family.name} looks turned about {abs(evidence.turned_degrees):.0f}° {direction} from a "
+                          f"{family.canonical_view} view (a turned template fits its outline better: {evidence.turned_iou:.2f} vs "
+                          f"{evidence.frontal_iou:.2f}); this family needs {view}")
+                return Decision(name=self.name, label="not frontal", confidence=best, accepted=False, reason=reason)
+        reason = f"the {family.name} matches a {family.canonical_view} view (silhouette agreement {best:.2f} >= {threshold:.2f})"
+        return Decision(name=self.name, label="frontal", confidence=best, accepted=True, reason=reason)
 
 
 class SubtypeClassifier:
