@@ -26,6 +26,8 @@ CORE_FAMILY_SETTINGS: dict[str, Any] = {
     "region_k": 32,  # the per-region jump bound K of section 3.2.2
     "max_angle_deg": 180.0,  # in-plane rotation searched by the alignment
     "frontal_threshold": 0.45,  # minimum silhouette agreement (IoU x foreshortening) of the frontal gate
+    "shape_prior": False,  # cut GrabCut's mask again with the templates placed on it (2-3 s; helps cluttered backgrounds)
+    "turned_margin": 1.0,  # frontal gate: reject when a template turned 30-90 deg fits the outline better by more than this IoU; 1 = off
     "depth_scale": "global",  # local, smooth, global or length (the object's length): how depth follows the warp
     "smooth_iterations": 10,  # Laplacian smoothing passes of the mesh
     "max_vertices": 0,  # 0 = keep every pixel's vertex

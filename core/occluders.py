@@ -75,11 +75,37 @@ def detect_arms_and_hands(image: np.ndarray, object_mask: np.ndarray | None = No
         return _detect(models, image, object_mask)
 
 
-def _detect(models: _Models, image: np.ndarray, object_mask: np.ndarray | None = None) -> np.ndarray | None:
+def detect_people(image: np.ndarray) -> np.ndarray | None:
+    """Bool mask (image-sized) of every person the selfie segmenter sees, or None if there is none.
+
+    Whether a person stands in front of the object or behind it is not decided here:
+    the occlusion stage keeps the pixels that reach into the aligned template (a torso
+    in front of a guitar) and drops the others (a guitarist's body behind it).
+    """
+    models = _load_models()
+    if models is None:
+        return None
+    with _native_logs_silenced():
+        small, (height, width) = _detection_image(image)
+        probability = models.segmenter.process(small).segmentation_mask
+        # The segmenter alone also fires on plain objects (a guitar's body); a person has a pose.
+        if (probability > 0.9).mean() < MIN_CONFIDENT_PERSON_SHARE or models.pose.process(small).pose_landmarks is None:
+            return None
+    person = (probability > PERSON_PROBABILITY).astype(np.uint8)
+    return cv2.resize(person, (width, height), interpolation=cv2.INTER_NEAREST) > 0
+
+
+def _detection_image(image: np.ndarray) -> tuple[np.ndarray, tuple[int, int]]:
+    """The RGB image at most DETECTION_SIDE on its long side, and the original (height, width)."""
     rgb = np.ascontiguousarray(image[..., :3], dtype=np.uint8)
     height, width = rgb.shape[:2]
     scale = min(1.0, DETECTION_SIDE / max(height, width))
     small = cv2.resize(rgb, (max(1, round(width * scale)), max(1, round(height * scale))), interpolation=cv2.INTER_AREA) if scale < 1.0 else rgb
+    return small, (height, width)
+
+
+def _detect(models: _Models, image: np.ndarray, object_mask: np.ndarray | None = None) -> np.ndarray | None:
+    small, (height, width) = _detection_image(image)
     probability = models.segmenter.process(small).segmentation_mask
     person = probability > PERSON_PROBABILITY
     found = _hand_mask(models.hands.process(small), person)

@@ -19,6 +19,7 @@ from typing import Any, Callable, Iterator
 import cv2
 import numpy as np
 
+from frontal3d import occluders as people_detector
 from frontal3d.errors import ConfigError, InputError, NoObjectError, NotFrontalError, TemplateError, UnknownFamilyError
 from frontal3d.family import Family, Template
 from frontal3d.imageio import as_rgb, read_image, read_mask
@@ -32,6 +33,9 @@ log = logging.getLogger("frontal3d")
 #: Margin, as a fraction of the object's bounding box, kept around the crop the
 #: shape stages work on (room for the template to overhang before warping).
 CROP_MARGIN = 0.08
+#: How far beyond the object's bounding box (a fraction of its size) a person in front
+#: may hide its outline: the crop covers the people touching the object that far.
+PEOPLE_REACH = 0.25
 
 
 @dataclass
@@ -126,13 +130,27 @@ def reconstruct(
         raise UnknownFamilyError("no family plugin is installed (see `frontal3d plugins`)")
     chosen = None
     rejections: list[str] = []
-    for fam in candidates:
+    people: np.ndarray | None = None
+    for index, fam in enumerate(candidates):
         fam_settings = plugins.settings(fam.name, settings)
         with report.stage(f"segment[{fam.name}]" if len(candidates) > 1 else "segment", progress):
             found = _segment(plugins, rgb, fam, fam_settings, user_mask, report)
             occluders = occlusion.find_occluders(plugins, rgb, found, fam_settings, user_occluders)
+            if index == 0:
+                people = people_detector.detect_people(rgb)
             object_mask = _choose_object(found, occluders, fam, report)
+            if fam_settings["shape_prior"] and report.data["segmenter"] == "GrabCut (training-free)":
+                object_mask = _refine_with_templates(plugins, rgb, object_mask, occluders, fam, fam_settings, subtype, report)
             touching = _touching(occluders, object_mask)
+            # People touching the object may stand in front of it or behind it: the template
+            # placed on the object tells which, here for the classifiers and the alignment,
+            # and again once aligned (occlusion stage).
+            people_near = _touching(people, object_mask)
+            if people_near.any():
+                in_front = _people_in_front(plugins, fam, fam_settings, subtype, object_mask, _probable_shape(object_mask, touching), people_near)
+                if in_front.any():
+                    occluders = in_front if occluders is None else occluders | in_front
+                    touching = _touching(occluders, object_mask)
             probable = _probable_shape(object_mask, touching)
         with report.stage(f"classify[{fam.name}]" if len(candidates) > 1 else "classify", progress):
             try:
@@ -145,14 +163,14 @@ def reconstruct(
                 continue
         score = max((d.confidence for d in decisions if d.name == "frontal"), default=0.0)
         if chosen is None or score > chosen[0]:
-            chosen = (score, fam, fam_settings, object_mask, probable, occluders, decisions, picked_subtype, renders_by_subtype, context)
+            chosen = (score, fam, fam_settings, object_mask, probable, occluders, people_near, decisions, picked_subtype, renders_by_subtype, context)
     if chosen is None:
         raise NotFrontalError("no installed family accepts this image: " + "; ".join(rejections))
-    _, fam, fam_settings, object_mask, probable, occluders, decisions, picked_subtype, renders_by_subtype, context = chosen
+    _, fam, fam_settings, object_mask, probable, occluders, people_near, decisions, picked_subtype, renders_by_subtype, context = chosen
     report.data["family"] = fam.name
     report.data["subtype"] = picked_subtype
     report.data["decisions"] = [d.to_dict() for d in decisions]
-    return _reconstruct_shape_and_texture(plugins, rgb, object_mask, probable, occluders, fam, picked_subtype, fam_settings, renders_by_subtype[picked_subtype], report, progress, context)
+    return _reconstruct_shape_and_texture(plugins, rgb, object_mask, probable, occluders, people_near, fam, picked_subtype, fam_settings, renders_by_subtype[picked_subtype], report, progress, context)
 
 
 def _reconstruct_shape_and_texture(
@@ -161,6 +179,7 @@ def _reconstruct_shape_and_texture(
     object_mask: np.ndarray,
     probable_shape: np.ndarray,
     occluders: np.ndarray | None,
+    people_near: np.ndarray,
     fam: Family,
     subtype: str,
     settings: dict[str, Any],
@@ -171,7 +190,7 @@ def _reconstruct_shape_and_texture(
 ) -> Reconstruction:
     maps: dict[str, np.ndarray] = {}
     # The crop also covers occluders touching the object: the rebuilt outline lies under them.
-    crop = _crop_for(object_mask | _touching(occluders, object_mask), int(settings["working_resolution"]))
+    crop = _crop_for(object_mask | _touching(occluders, object_mask) | (people_near & _around(object_mask)), int(settings["working_resolution"]))
     work_rgb = _to_working(rgb[..., :3], crop, cv2.INTER_AREA)
     work_mask = _to_working(object_mask.astype(np.uint8), crop, cv2.INTER_NEAREST) > 0
     report.data["working_size"] = [int(work_mask.shape[1]), int(work_mask.shape[0])]
@@ -200,6 +219,8 @@ def _reconstruct_shape_and_texture(
 
     with report.stage("occlusion", progress):
         work_occluders = _to_working(occluders.astype(np.uint8), crop, cv2.INTER_NEAREST) > 0 if occluders is not None else np.zeros_like(work_mask)
+        if people_near.any():
+            work_occluders |= occlusion.in_front(_to_working(people_near.astype(np.uint8), crop, cv2.INTER_NEAREST) > 0, work_mask, aligned_template_mask)
         rebuilt = occlusion.rebuild_silhouette(
             work_mask, work_occluders, aligned_template_mask, k=k,
         )
@@ -379,6 +400,45 @@ def _touching(occluders: np.ndarray | None, mask: np.ndarray) -> np.ndarray:
     near = cv2.dilate(mask.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
     touching = np.unique(labels[near & occluders])
     return np.isin(labels, touching[touching > 0])
+
+
+def _refine_with_templates(plugins: Plugins, rgb: np.ndarray, object_mask: np.ndarray, occluders: np.ndarray | None,
+                           fam: Family, settings: dict[str, Any], forced_subtype: str | None, report: Report) -> np.ndarray:
+    """GrabCut's mask cut again with each subtype's template, placed on it as the classifiers
+    place it, as the shape prior (segment.refine_with_shape_prior); kept when no template helps.
+    Runs before the classifiers: the frontal gate would reject a wingless mask first.
+    Only GrabCut's masks: a user's mask, an alpha channel or a learned mask stands as given."""
+    subtypes = [forced_subtype] if forced_subtype in fam.subtypes else list(fam.subtypes)
+    renders = {s: _renders(plugins, fam, s, settings) for s in subtypes}
+    max_angle = np.deg2rad(float(settings["max_angle_deg"]))
+    agreement = classify.silhouette_agreement(object_mask, renders, max_angle)
+    refined = segment.refine_with_shape_prior(rgb, object_mask, renders, agreement, max_angle, exclude=occluders)
+    report.data["shape_prior_changed_pixels"] = 0 if refined is object_mask else int(np.count_nonzero(refined ^ object_mask))
+    if refined is object_mask:
+        return object_mask
+    return _group_near_largest(segment.split_objects(refined), occluders)[0]
+
+
+def _people_in_front(plugins: Plugins, fam: Family, settings: dict[str, Any], subtype: str | None,
+                     object_mask: np.ndarray, probable: np.ndarray, people_near: np.ndarray) -> np.ndarray:
+    """The people's pixels in front of the object, judged by the best-fitting subtype's
+    template placed on the object as seen: the classifiers and the alignment then leave
+    them out like found arms (a torso in front of a guitar is not a notch in its body)."""
+    renders = {s: _renders(plugins, fam, s, settings) for s in ([subtype] if subtype in fam.subtypes else fam.subtypes)}
+    agreement = classify.silhouette_agreement(probable, renders, np.deg2rad(float(settings["max_angle_deg"])))
+    best = max(agreement, key=lambda s: agreement[s].iou)
+    placed = align.warp_mask(renders[best].mask, agreement[best].similarity, object_mask.shape)
+    return occlusion.in_front(people_near, object_mask, placed)
+
+
+def _around(mask: np.ndarray) -> np.ndarray:
+    """The mask's bounding box grown by PEOPLE_REACH of its size on every side: where a
+    person in front may hide the object's outline (the crop must leave room to rebuild it)."""
+    ys, xs = np.nonzero(mask)
+    margin = int(np.ceil(PEOPLE_REACH * max(np.ptp(ys), np.ptp(xs))))
+    around = np.zeros_like(mask, dtype=bool)
+    around[max(0, ys.min() - margin) : ys.max() + margin + 1, max(0, xs.min() - margin) : xs.max() + margin + 1] = True
+    return around
 
 
 def _probable_shape(object_mask: np.ndarray, touching: np.ndarray) -> np.ndarray:

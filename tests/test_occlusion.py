@@ -15,11 +15,12 @@ import pytest
 from types import SimpleNamespace
 
 from frontal3d.family import Family
-from frontal3d.occluders import _detect, _Models, detect_arms_and_hands
+from frontal3d import occluders
+from frontal3d.occluders import _detect, _Models, detect_arms_and_hands, detect_people
 from frontal3d.pipeline import Report, _choose_object
 from frontal3d.render import TemplateRenders
 from frontal3d.stages.classify import SubtypeClassifier
-from frontal3d.stages.occlusion import VisibleAgreementContext, hidden_by, rebuild_silhouette
+from frontal3d.stages.occlusion import VisibleAgreementContext, hidden_by, in_front, rebuild_silhouette
 
 SKIN = (224, 172, 135)
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -121,8 +122,10 @@ def test_the_detector_finds_nobody_on_an_image_without_people_quickly(occluded_e
     detect_arms_and_hands(image)  # the first call loads the models once per process
     start = time.perf_counter()
     found = detect_arms_and_hands(image)
+    people = detect_people(image)
     assert time.perf_counter() - start < 0.3
     assert found is None or not found.any()
+    assert people is None
 
 
 def test_without_mediapipe_the_detector_finds_nothing_and_warns(monkeypatch, caplog):
@@ -274,3 +277,102 @@ def test_a_found_hand_is_completed_by_the_persons_pixels_off_the_object():
     assert completed[sleeve & (np.arange(200)[None, :] > 90)].all()
     assert np.array_equal(completed & object_mask, hand_only & object_mask)  # the object's own pixels are never added
     assert not completed[sleeve & (np.arange(200)[None, :] < 50)].any()  # only near the hand
+
+
+def _drawn_guitar(shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """A blue guitar drawn from two bouts, a neck and a headstock, with a wood grain; returns (RGB image, mask)."""
+    mask = np.zeros(shape, np.uint8)
+    cx, cy, body = shape[1] // 2, int(shape[0] * 0.74), shape[0] // 9
+    cv2.ellipse(mask, (cx, cy), (body, int(body * 1.2)), 0, 0, 360, 1, -1)
+    cv2.ellipse(mask, (cx, cy - int(body * 1.3)), (int(body * 0.8), int(body * 0.7)), 0, 0, 360, 1, -1)
+    top = cy - int(body * 1.8)
+    mask[top - int(body * 2.6) : top + 5, cx - body // 7 : cx + body // 7] = 1
+    mask[top - int(body * 3.2) : top - int(body * 2.6), cx - body // 4 : cx + body // 4] = 1
+    grain = np.random.default_rng(0).normal(0, 8, shape[:2])[..., None]
+    image = np.full(shape + (3,), 235, np.uint8)
+    wood = np.clip(np.array([40, 70, 150]) + cv2.GaussianBlur(grain, (0, 0), 2)[..., None] * 2, 0, 255)
+    image[mask > 0] = wood[mask > 0]
+    return image, mask > 0
+
+
+def _skin(rgb: np.ndarray) -> np.ndarray:
+    """The usual YCrCb skin rule (it also takes in the astronaut's orange suit)."""
+    ycc = cv2.cvtColor(np.ascontiguousarray(rgb[..., :3]), cv2.COLOR_RGB2YCrCb).astype(int)
+    return (ycc[..., 1] > 140) & (ycc[..., 1] < 175) & (ycc[..., 2] > 85) & (ycc[..., 2] < 125) & (ycc[..., 0] > 60)
+
+
+@needs_mediapipe
+def test_a_real_person_in_front_of_a_guitar_is_found_and_left_out_of_the_texture():
+    """NASA's portrait of astronaut Eileen Collins (skimage's data/astronaut.png, public domain),
+    cut out by the selfie segmenter, stands in front of a drawn guitar's lower body. Only the
+    guitar's visible mask is given, no occluder mask: the person must be found, the outline
+    rebuilt behind her, and none of her colours left in the guitar's texture."""
+    import skimage
+    from frontal3d.photo_render import frontal_camera, render_frontal
+
+    portrait = cv2.cvtColor(cv2.imread(str(Path(skimage.__file__).parent / "data" / "astronaut.png")), cv2.COLOR_BGR2RGB)
+    cut_out = detect_people(portrait)
+    rows, cols = np.nonzero(cut_out)
+    portrait, cut_out = (a[rows.min() : rows.max() + 1, cols.min() : cols.max() + 1] for a in (portrait, cut_out))
+    guitar_image, guitar = _drawn_guitar((480, 480))
+    size, left = 240, 60  # her left shoulder over the guitar's lower body
+    person = np.zeros(guitar.shape, bool)
+    person[480 - size :, left : left + size] = cv2.resize(cut_out.astype(np.uint8), (size, size), interpolation=cv2.INTER_NEAREST) > 0
+    composite = guitar_image.copy()
+    composite[person] = cv2.resize(portrait, (size, size), interpolation=cv2.INTER_AREA)[person[480 - size :, left : left + size]]
+    assert 0.1 < (person & guitar).sum() / guitar.sum() < 0.35  # the person hides a good part of the body
+
+    clean = frontal3d.reconstruct(guitar_image, "guitar", mask=guitar)
+    occluded = frontal3d.reconstruct(composite, "guitar", mask=guitar & ~person)
+
+    assert occluded.report["occlusion"]["occluded_fraction"] > 0.1
+    assert occluded.mesh.is_watertight
+
+    def outline(mesh):
+        return render_frontal(mesh, frontal_camera(mesh, 200, 0.8))[..., 3] > 0
+
+    assert _iou(outline(occluded.mesh), outline(clean.mesh)) > 0.85  # 0.77 when the person is not found
+    assert occluded.mesh.extents[1] == pytest.approx(clean.mesh.extents[1], rel=0.05)
+    front = occluded.textured.atlas[:, : occluded.textured.atlas.shape[1] // 2]
+    rows, cols = np.nonzero(guitar)
+    assert _skin(composite[rows.min() : rows.max() + 1, cols.min() : cols.max() + 1]).mean() > 0.005  # skin and orange suit to leave out
+    assert _skin(front).sum() < 0.002 * front.shape[0] * front.shape[1]  # 1.4 % when the person is not found
+
+
+def test_the_person_segmenter_alone_finds_nobody_without_a_pose(monkeypatch):
+    """Selfie segmenters also fire on plain objects (a guitar's body): without a body pose there is no person."""
+    blob = _ellipse((120, 120), (60, 60), (30, 40))
+
+    def solution(result):
+        return SimpleNamespace(process=lambda image: result)
+
+    def models(pose_landmarks):
+        return _Models(segmenter=solution(SimpleNamespace(segmentation_mask=np.where(blob, 0.95, 0.0).astype(np.float32))),
+                       pose=solution(SimpleNamespace(pose_landmarks=pose_landmarks)), hands=None)
+
+    image = np.zeros((120, 120, 3), np.uint8)
+    monkeypatch.setattr(occluders, "_load_models", lambda: models(None))
+    assert detect_people(image) is None
+    monkeypatch.setattr(occluders, "_load_models", lambda: models(SimpleNamespace(landmark=[])))
+    assert np.array_equal(detect_people(image), blob)
+
+
+def test_only_people_reaching_into_the_template_stand_in_front():
+    """A torso over the object's lower part hides it; a body beside the object, meeting the
+    template only along its edge, is behind it; a dark gap the person segmenter lost next to
+    the torso, where the template expects the object, is hidden too; the object's own pixels never are."""
+    shape = (200, 200)
+    template = _ellipse(shape, (100, 100), (50, 80))
+    truth = _ellipse(shape, (100, 101), (51, 80))
+    torso = np.zeros(shape, bool)
+    torso[140:, 60:110] = True
+    gap = np.zeros(shape, bool)
+    gap[140:170, 110:125] = True  # a sleeve the segmenter missed
+    body_behind = np.zeros(shape, bool)
+    body_behind[20:90, 148:200] = True
+    object_mask = truth & ~torso & ~gap
+    found = in_front(torso | (body_behind & ~truth), object_mask, template)
+    assert found[torso & truth].all()
+    assert found[gap & template].mean() > 0.9
+    assert not found[body_behind].any()
+    assert not (found & object_mask).any()

@@ -162,3 +162,15 @@ def test_a_plugin_wrapping_the_segmenter_chain_still_gets_the_mask():
     assert _CountingSegmentWrapper.calls == 1
     assert result.report["segmenter"] == "segmenter chain (wrapped by a plugin)"
     assert result.mesh.is_watertight
+
+
+def test_shape_prior_keeps_a_clean_photo_and_never_touches_a_given_mask(plugins):
+    rgba, _ = _template_photo(plugins, "airplane", "fighter")
+    mask = rgba[..., 3] > 0
+    photo = np.where(mask[..., None], rgba[..., :3], 235).astype(np.uint8)
+    result = frontal3d.reconstruct(photo, "airplane", shape_prior=True, frontal_threshold=0, plugins=plugins)
+    assert result.report["segmenter"] == "GrabCut (training-free)"
+    assert result.mesh.is_watertight
+    assert result.report["shape_prior_changed_pixels"] < 0.02 * mask.sum()
+    given = frontal3d.reconstruct(photo, "airplane", mask=mask, shape_prior=True, frontal_threshold=0, plugins=plugins)
+    assert "shape_prior_changed_pixels" not in given.report

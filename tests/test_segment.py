@@ -8,7 +8,9 @@ import pytest
 
 from frontal3d.errors import InputError
 from frontal3d.imageio import read_mask
-from frontal3d.stages.segment import grabcut_segment, mask_from_alpha, split_objects
+from frontal3d.render import TemplateRenders
+from frontal3d.stages.classify import silhouette_agreement
+from frontal3d.stages.segment import grabcut_segment, mask_from_alpha, refine_with_shape_prior, split_objects
 
 
 def _ellipse_mask(shape: tuple[int, int]) -> np.ndarray:
@@ -190,3 +192,67 @@ def test_split_objects_orders_by_size_and_drops_specks():
     mask[95:97, 2:4] = True
     objects = split_objects(mask)
     assert [int(o.sum()) for o in objects] == [1600, 900]
+
+
+def _silhouette_template(mask: np.ndarray) -> TemplateRenders:
+    """Template renders of which only the silhouette matters (the shape prior uses nothing else)."""
+    depth = np.where(mask, 0.0, np.nan)
+    normals = np.zeros(mask.shape + (3,))
+    regions = np.where(mask, 0, -1)
+    return TemplateRenders((0.0, 0.0), 1.0, mask, depth, depth, normals, normals, regions, regions, ("body",))
+
+
+def _airplane_template() -> dict[str, TemplateRenders]:
+    template = np.zeros((256, 256), bool)
+    template[16:240, 16:240] = _airplane_mask((224, 224))
+    return {"airliner": _silhouette_template(template)}
+
+
+def _airplane_over_colour_spots(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """A dark fuselage with wings barely off a grey background whose colour spots fool the first pass."""
+    shape = (480, 480)
+    truth = _airplane_mask(shape)
+    background = np.full(shape + (3,), 190.0)
+    for centre in [(40, 60), (420, 50), (60, 420), (430, 430), (240, 20), (20, 240), (460, 240)]:
+        spot = np.zeros(shape, np.float32)
+        cv2.circle(spot, centre, int(rng.integers(30, 50)), 1.0, -1)
+        spot = cv2.GaussianBlur(spot, (0, 0), 12)[..., None]
+        background = background * (1 - spot) + spot * rng.uniform(90, 240, 3)
+    shading = np.linspace(0.97, 1.03, shape[1])[None, :, None]
+    image = np.where(truth[..., None], np.array([196.0, 201, 207]) * shading, background)
+    fuselage = np.zeros(shape, np.uint8)
+    cv2.ellipse(fuselage, (240, 240), (12, 192), 0, 0, 360, 1, -1)
+    image = np.where((fuselage > 0)[..., None], np.array([150.0, 155, 165]), image)
+    return np.clip(image + rng.normal(0, 3, image.shape), 0, 255).astype(np.uint8), truth
+
+
+def test_shape_prior_recovers_wings_the_first_pass_lost_on_a_cluttered_background():
+    image, truth = _airplane_over_colour_spots(np.random.default_rng(0))
+    first = split_objects(grabcut_segment(image))[0]
+    templates = _airplane_template()
+    refined = refine_with_shape_prior(image, first, templates, silhouette_agreement(first, templates, np.pi))
+    assert _iou(first, truth) < 0.6
+    assert _iou(refined, truth) > 0.95
+
+
+def test_shape_prior_never_takes_excluded_pixels():
+    image, truth = _airplane_over_colour_spots(np.random.default_rng(0))
+    first = split_objects(grabcut_segment(image))[0]
+    occluder = np.zeros_like(truth)
+    occluder[200:330, 300:330] = True  # an arm across the right wing
+    image[occluder] = (205, 150, 120)
+    templates = _airplane_template()
+    refined = refine_with_shape_prior(image, first & ~occluder, templates, silhouette_agreement(first & ~occluder, templates, np.pi), exclude=occluder)
+    assert not (refined & occluder).any()
+    assert _iou(refined, truth & ~occluder) >= _iou(first, truth & ~occluder)
+
+
+def test_shape_prior_leaves_a_good_mask_on_a_plain_background_unchanged():
+    rng = np.random.default_rng(9)
+    truth = _airplane_mask((480, 480))
+    image = _composite(np.full((480, 480, 3), (225.0, 228, 232)), truth, (120, 125, 140), rng)
+    first = grabcut_segment(image)
+    templates = _airplane_template()
+    refined = refine_with_shape_prior(image, first, templates, silhouette_agreement(first, templates, np.pi))
+    assert _iou(first, truth) > 0.95
+    assert np.array_equal(refined, first)

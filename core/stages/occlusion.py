@@ -86,6 +86,37 @@ def hidden_by(occluders: np.ndarray, object_mask: np.ndarray) -> np.ndarray:
     return cv2.dilate(np.asarray(occluders, dtype=np.uint8), _disc(radius)) > 0
 
 
+def in_front(people: np.ndarray, object_mask: np.ndarray, aligned_template_mask: np.ndarray) -> np.ndarray:
+    """The pixels by which people hide the object, found with the aligned template.
+
+    Where the template expects the object (deeper than OCCLUDER_REACH inside it) but the
+    object is not seen, a person there, or a gap touching a person (dark sleeves and a
+    held camera the person segmenter loses over the object), stands in front of it. Their
+    surroundings up to twice that reach, off the object, are added where they cross the
+    outline. A body behind the object meets the template only along its edge (the
+    alignment's error), so it is left out and the outline it borders stays the one seen;
+    people's pixels on the object (a held guitar the segmenter counts as the person) stay object.
+    """
+    people = np.asarray(people, dtype=bool)
+    off_object = ~np.asarray(object_mask, dtype=bool)
+    template = np.asarray(aligned_template_mask, dtype=np.uint8)
+    rows, cols = np.nonzero(template)
+    if len(rows) == 0:
+        return np.zeros_like(people)
+    radius = max(1, round(OCCLUDER_REACH * (max(np.ptp(rows), np.ptp(cols)) + 1)))
+    unseen = off_object & (cv2.erode(template, _disc(radius)) > 0)
+    _count, pieces = cv2.connectedComponents(unseen.astype(np.uint8))
+    # The person segmenter's mask spills a few pixels over the object's edge (and takes in a
+    # held object): only the person away from the object can vouch for a gap.
+    away = people & (cv2.dilate((~off_object).astype(np.uint8), _disc(radius)) == 0)
+    near_people = cv2.dilate(away.astype(np.uint8), _disc(1)) > 0
+    touched = np.unique(pieces[near_people & unseen])
+    inside = np.isin(pieces, touched[touched > 0])
+    if not inside.any():
+        return np.zeros_like(people)
+    return (people | inside) & off_object & (cv2.dilate(inside.astype(np.uint8), _disc(2 * radius)) > 0)
+
+
 @dataclass
 class VisibleAgreementContext(ClassifierContext):
     """A classifier context whose silhouette agreement is scored only where the object is

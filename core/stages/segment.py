@@ -3,13 +3,21 @@
 The chain (``frontal3d_segment`` hook) asks, in order: the user's mask, the alpha
 channel, learned segmenters from plugins, then :func:`grabcut_segment`, which needs no
 training: a smooth background model fitted from the image border inwards, with edge and
-texture cues, seeds OpenCV's GrabCut.
+texture cues, seeds OpenCV's GrabCut. Once the classifier has placed the family's
+templates on that mask, :func:`refine_with_shape_prior` cuts again with them as shape
+priors, for clutter that fooled the first pass.
 """
 
 from __future__ import annotations
 
+from typing import Mapping
+
 import cv2
 import numpy as np
+
+from frontal3d.render import TemplateRenders
+from frontal3d.stages.align import warp_mask
+from frontal3d.stages.classify import Agreement, silhouette_agreement
 
 
 #: Components smaller than this fraction of the largest are clutter, not objects.
@@ -301,3 +309,143 @@ def _clean(mask: np.ndarray) -> np.ndarray:
     edge_labels = np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))
     small = np.flatnonzero(stats[:, cv2.CC_STAT_AREA] < MAX_FILLED_HOLE * mask.sum())
     return mask | np.isin(labels, np.setdiff1d(small, edge_labels))
+
+
+#: Shape-prior refinement: how far (fractions of the template's long side) beyond the
+#: placed template's outline the object may reach; beyond lies definite background. A
+#: template fitted to a mask that lost its wings is too small, so a wide reach is tried too.
+PRIOR_REACHES = (0.1, 0.25)
+#: Depth, as a fraction of the template's long side, of the template's core that is sure
+#: foreground where the first mask agrees.
+PRIOR_CORE = 0.04
+#: A refined mask replaces the first when a template explains it better by this IoU.
+PRIOR_MIN_GAIN = 0.02
+#: A colour within this multiple of the border's median distance to its own colour
+#: clusters is background-like; a shape-prior cut may not add mostly such pixels.
+BACKGROUND_LIKE_DISTANCE = 1.0
+#: Share of the pixels the first mask and a template agree on that a shape-prior cut must keep.
+PRIOR_KEPT = 0.9
+#: Long side of the image the shape-prior candidates are cut on (thin wings need the
+#: first pass's size); only the winner's edge is refined at full resolution.
+PRIOR_SIZE = GRABCUT_SIZE
+#: GrabCut iterations per shape-prior candidate.
+PRIOR_ITERATIONS = 5
+
+
+def refine_with_shape_prior(image: np.ndarray, mask: np.ndarray, renders: Mapping[str, TemplateRenders],
+                            agreement: Mapping[str, Agreement], max_angle: float = np.pi,
+                            exclude: np.ndarray | None = None) -> np.ndarray:
+    """Re-segment with the templates placed on the first mask as shape priors; ``mask`` when none helps.
+
+    Clutter that fools the first pass (a blob of the object's colour touching a wing, a
+    wing lost against a background of nearly its colour) is judged again by GrabCut
+    seeded from each subtype's template where the classifier placed it (``agreement``,
+    :func:`frontal3d.stages.classify.silhouette_agreement` of ``mask``): probable
+    foreground inside the template, sure foreground in its core where ``mask`` agrees,
+    sure background beyond a reach of its outline (:data:`PRIOR_REACHES`) and in
+    ``exclude`` (occluders). Every subtype is tried: a mask that lost its wings fits
+    the wrong subtype best. The template only seeds; colour decides the edge.
+
+    A candidate is judged as the classifier judges the first mask: its silhouette
+    agreement with its template, re-fitted. The best replaces ``mask`` only when it
+    beats the first mask's best agreement by :data:`PRIOR_MIN_GAIN`; the template is
+    a generic shape, so a colour cut that merely hugs it (or takes clutter in its
+    reach) must make the object more template-like, not just different. An already
+    good mask (a plain background) is thus returned unchanged.
+    """
+    mask = np.asarray(mask, dtype=bool)
+    if not mask.any() or not agreement:
+        return mask
+    rgb = np.ascontiguousarray(image[..., :3], dtype=np.uint8)
+    height, width = mask.shape
+    scale = min(1.0, PRIOR_SIZE / max(height, width))
+    size = (max(1, round(width * scale)), max(1, round(height * scale)))
+
+    def shrink(array: np.ndarray) -> np.ndarray:
+        return cv2.resize(array.astype(np.uint8), size, interpolation=cv2.INTER_NEAREST) > 0
+
+    small = cv2.resize(rgb, size, interpolation=cv2.INTER_AREA)
+    first = shrink(mask)
+    background_like = _background_like(small)
+    excluded = None if exclude is None else shrink(np.asarray(exclude, dtype=bool))
+    best, best_score = None, max(found.iou for found in agreement.values()) + PRIOR_MIN_GAIN
+    for subtype, found in agreement.items():
+        prior = shrink(warp_mask(renders[subtype].mask, found.similarity, mask.shape))
+        if not prior.any():
+            continue
+        for reach in PRIOR_REACHES:
+            candidate = _segment_with_prior(small, first, prior, excluded, reach)
+            if candidate is None or not _consistent(candidate, first, prior, background_like):
+                continue
+            # The IoU of the re-fitted template does not depend on the mask's resolution.
+            score = silhouette_agreement(candidate, {subtype: renders[subtype]}, max_angle)[subtype].iou
+            if score > best_score:
+                best, best_score = candidate, score
+    if best is None:
+        return mask
+    refined = _refine_edge(rgb, best)
+    if exclude is not None:
+        refined &= ~np.asarray(exclude, dtype=bool)
+    return refined
+
+
+def _segment_with_prior(small: np.ndarray, first: np.ndarray, prior: np.ndarray, exclude: np.ndarray | None, reach_fraction: float) -> np.ndarray | None:
+    """GrabCut seeded from one placed template (see :func:`refine_with_shape_prior`), or None."""
+    ys, xs = np.nonzero(prior)
+    extent = max(np.ptp(ys), np.ptp(xs)) + 1
+    near = _dilated(prior, max(2, round(reach_fraction * extent)))
+    core = (cv2.erode(prior.astype(np.uint8), _disc(max(1, round(PRIOR_CORE * extent)))) > 0) & first
+    labels = np.full(prior.shape, cv2.GC_PR_BGD, np.uint8)
+    labels[prior | (first & near)] = cv2.GC_PR_FGD
+    labels[core] = cv2.GC_FGD
+    labels[~near] = cv2.GC_BGD
+    if exclude is not None:
+        labels[exclude] = cv2.GC_BGD
+    if not (labels == cv2.GC_BGD).any() or not np.isin(labels, (cv2.GC_FGD, cv2.GC_PR_FGD)).any():
+        return None
+    _grabcut(small, labels, PRIOR_ITERATIONS)
+    found = _clean(_foreground(labels))
+    return found if found.any() else None
+
+
+def _consistent(candidate: np.ndarray, first: np.ndarray, prior: np.ndarray, background_like: np.ndarray) -> bool:
+    """Whether a shape-prior cut corrects the first mask rather than replacing it.
+
+    It must keep what the first mask and its template agree on (a cut that lost the
+    fuselage found something else), hug its template at least as well as the first mask
+    does and not spread to more image borders (a cut that floods a background of the
+    object's colour does both, however well some other placement would explain the
+    flood), and what it adds must not look like the image border (a template placed a
+    little off pulls in the background between a wing and the tail).
+    """
+    agreed = first & prior
+    kept = np.count_nonzero(candidate & agreed) >= PRIOR_KEPT * np.count_nonzero(agreed)
+    spread = _borders_touched(candidate) > _borders_touched(first)
+    added = candidate & ~first
+    adds_background = added.any() and background_like[added].mean() > 0.5
+    return kept and _iou(candidate, prior) >= _iou(first, prior) and not spread and not adds_background
+
+
+def _borders_touched(mask: np.ndarray) -> int:
+    return int(mask[0].any()) + int(mask[-1].any()) + int(mask[:, 0].any()) + int(mask[:, -1].any())
+
+
+def _background_like(rgb: np.ndarray) -> np.ndarray:
+    """Pixels whose colour is as close to the image border's colours as most border pixels are."""
+    lab = cv2.GaussianBlur(cv2.cvtColor(rgb, cv2.COLOR_RGB2LAB).astype(np.float32), (0, 0), 1.5)
+    border = _border_mask(rgb.shape[:2])
+    distance = _distance_to_colours(lab, lab[border])
+    typical = max(1.0, float(np.median(distance[border])))
+    return distance <= BACKGROUND_LIKE_DISTANCE * typical
+
+
+def _disc(radius: int) -> np.ndarray:
+    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1,) * 2)
+
+
+def _dilated(mask: np.ndarray, radius: int) -> np.ndarray:
+    return cv2.dilate(mask.astype(np.uint8), _disc(radius)) > 0
+
+
+def _iou(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.count_nonzero(a & b) / max(np.count_nonzero(a | b), 1))
