@@ -122,6 +122,9 @@ def quilt(exemplar: np.ndarray, out_shape: tuple[int, int], rng: np.random.Gener
                 cost += overlap_cost(canvas[y:y + overlap, x:x + block])
             if has_left and has_top:
                 cost -= overlap_cost(canvas[y:y + overlap, x:x + overlap])
+                # A sum of squares, but the subtraction's rounding can dip below zero, and a
+                # negative minimum would put the threshold below every candidate.
+                np.maximum(cost, 0.0, out=cost)
             threshold = cost.min() * (1.0 + QUILT_TOLERANCE) + 1e-6
             choices = np.flatnonzero(cost.ravel() <= threshold)
             py, px = np.unravel_index(int(rng.choice(choices)), cost.shape)
