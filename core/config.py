@@ -118,11 +118,11 @@ def merge_family_settings(config: Config, family_name: str, family_defaults: dic
         if key not in merged:
             known = ", ".join(sorted(merged))
             raise ConfigError(f"{where}: unknown setting (known: {known})")
-        merged[key] = _coerce(value, merged[key], where)
+        merged[key] = coerce_setting(value, merged[key], where)
     return merged
 
 
-def _coerce(value: Any, default: Any, where: str) -> Any:
+def coerce_setting(value: Any, default: Any, where: str) -> Any:
     """Accept a value of the default's type (an int where a float is expected too)."""
     if isinstance(default, bool):
         ok = isinstance(value, bool)

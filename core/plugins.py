@@ -21,7 +21,7 @@ from typing import Any
 import pluggy
 
 from frontal3d import hookspecs
-from frontal3d.config import Config, merge_family_settings
+from frontal3d.config import Config, coerce_setting, merge_family_settings
 from frontal3d.errors import ConfigError, PluginError, UnknownFamilyError
 from frontal3d.family import Family
 
@@ -78,7 +78,7 @@ class Plugins:
         for key, value in (overrides or {}).items():
             if key not in merged:
                 raise ConfigError(f"unknown setting {key!r} for family {family_name!r}")
-            merged[key] = value
+            merged[key] = coerce_setting(value, merged[key], f"setting {key!r}")
         return merged
 
     def _load(self) -> None:

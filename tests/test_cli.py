@@ -90,6 +90,8 @@ def test_bad_setting_is_one_line_error(tmp_path, capsys):
     image = tmp_path / "x.png"
     cv2.imwrite(str(image), np.random.default_rng(0).integers(0, 255, (64, 64, 3), dtype=np.uint8))
     assert "unknown setting 'no_such_key'" in _one_line_error(capsys, ["reconstruct", str(image), "--family", "car", "--set", "no_such_key=1"])
+    wrong_type = _one_line_error(capsys, ["reconstruct", str(image), "--family", "car", "--set", "working_resolution=big"])
+    assert "setting 'working_resolution': expected int" in wrong_type
 
 
 def test_scaffolded_family_installs_and_is_listed(tmp_path):
