@@ -156,8 +156,7 @@ def align_template(template_mask: np.ndarray, object_mask: np.ndarray,
     angle_window = None
     axis_angle = _mismatched_mirror_axis(template_mask, tpl_centroid, object_mask, obj_centroid, half_side, best.angle)
     if axis_angle is not None:
-        on_axis = [float(np.angle(np.exp(1j * a))) for a in (axis_angle, axis_angle + np.pi)]
-        on_axis = [a for a in on_axis if abs(a) <= max_angle]
+        on_axis = _turns_onto(axis_angle, max_angle)
         if on_axis:
             angle_window = AXIS_WINDOW
             candidates = _coarse_candidates(tpl, coarse, tpl_centroid, obj_centroid, scale0, on_axis)
@@ -288,12 +287,14 @@ def _sweep_angles(axis_angle: float, max_angle: float) -> list[float]:
     """The coarse sweep's rotations: a regular step within ``max_angle``, plus the two that
     turn the template's principal axis onto the object's."""
     n_steps = int(np.floor(max_angle / ANGLE_STEP))
-    angles = list(ANGLE_STEP * np.arange(-n_steps, n_steps + 1))
-    for a in (axis_angle, axis_angle + np.pi):
-        a = float(np.angle(np.exp(1j * a)))
-        if abs(a) <= max_angle:
-            angles.append(a)
-    return angles
+    return list(ANGLE_STEP * np.arange(-n_steps, n_steps + 1)) + _turns_onto(axis_angle, max_angle)
+
+
+def _turns_onto(axis_angle: float, max_angle: float) -> list[float]:
+    """The rotations by ``axis_angle`` and by it plus a half turn, wrapped to (-pi, pi],
+    that stay within ``max_angle``: both ways of laying the template's axis on a line."""
+    wrapped = (float(np.angle(np.exp(1j * a))) for a in (axis_angle, axis_angle + np.pi))
+    return [a for a in wrapped if abs(a) <= max_angle]
 
 
 def _coarse_candidates(tpl: _MapPyramid, view: _GridView, tpl_centroid: np.ndarray, obj_centroid: np.ndarray,
