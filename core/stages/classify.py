@@ -17,6 +17,7 @@ from typing import Any, Protocol
 import cv2
 import numpy as np
 
+from frontal3d.config import CORE_FAMILY_SETTINGS
 from frontal3d.family import Family
 from frontal3d.render import TemplateRenders
 from frontal3d.stages.align import Similarity, align_template, warp_labels
@@ -27,10 +28,6 @@ AGREEMENT_SIZE = 128
 #: Softmax temperature turning subtype scores (IoUs) into confidences: an IoU margin
 #: of 0.05 gives about 92 % / 8 %.
 SUBTYPE_TEMPERATURE = 0.02
-#: Default of the ``turned_margin`` setting: the frontal gate rejects when a turned template
-#: (30-90°) beats the best canonical-view template's outline agreement by more than this.
-#: Agreements are IoUs, so 1.0 never rejects (the test is off); cars use 0.0.
-TURNED_MARGIN = 1.0
 #: Region name of a template's dark opening (a classical guitar's sound hole).
 HOLE_REGION = "hole"
 #: How much a visible (or missing) dark opening adds to (or takes from) a subtype's score.
@@ -68,7 +65,7 @@ class ClassifierContext:
     """What every classifier may look at; silhouette agreements are computed once and shared.
 
     ``settings`` needs ``max_angle_deg`` (rotation searched) and ``frontal_threshold``;
-    ``turned_margin`` is optional (default :data:`TURNED_MARGIN`).
+    ``turned_margin`` is optional (default: the core setting's, which leaves the turned test off).
     """
 
     image: np.ndarray
@@ -155,7 +152,7 @@ class FrontalGate:
             reason = (f"the {family.name} is not seen in a {family.canonical_view} view (silhouette agreement {best:.2f} < "
                       f"{threshold:.2f}); this family needs {view}")
             return Decision(name=self.name, label="not frontal", confidence=best, accepted=False, reason=reason)
-        margin = float(context.settings.get("turned_margin", TURNED_MARGIN))
+        margin = float(context.settings.get("turned_margin", CORE_FAMILY_SETTINGS["turned_margin"]))
         if threshold > 0 and margin < 1.0:
             evidence = context.turn_evidence()
             if evidence.margin < -margin:
