@@ -408,8 +408,7 @@ def _refine_with_templates(plugins: Plugins, rgb: np.ndarray, object_mask: np.nd
     place it, as the shape prior (segment.refine_with_shape_prior); kept when no template helps.
     Runs before the classifiers: the frontal gate would reject a wingless mask first.
     Only GrabCut's masks: a user's mask, an alpha channel or a learned mask stands as given."""
-    subtypes = [forced_subtype] if forced_subtype in fam.subtypes else list(fam.subtypes)
-    renders = {s: _renders(plugins, fam, s, settings) for s in subtypes}
+    renders = _subtype_renders(plugins, fam, settings, forced_subtype)
     max_angle = np.deg2rad(float(settings["max_angle_deg"]))
     agreement = classify.silhouette_agreement(object_mask, renders, max_angle)
     refined = segment.refine_with_shape_prior(rgb, object_mask, renders, agreement, max_angle, exclude=occluders)
@@ -424,7 +423,7 @@ def _people_in_front(plugins: Plugins, fam: Family, settings: dict[str, Any], su
     """The people's pixels in front of the object, judged by the best-fitting subtype's
     template placed on the object as seen: the classifiers and the alignment then leave
     them out like found arms (a torso in front of a guitar is not a notch in its body)."""
-    renders = {s: _renders(plugins, fam, s, settings) for s in ([subtype] if subtype in fam.subtypes else fam.subtypes)}
+    renders = _subtype_renders(plugins, fam, settings, subtype)
     agreement = classify.silhouette_agreement(probable, renders, np.deg2rad(float(settings["max_angle_deg"])))
     best = max(agreement, key=lambda s: agreement[s].iou)
     placed = align.warp_mask(renders[best].mask, agreement[best].similarity, object_mask.shape)
@@ -457,10 +456,7 @@ def _probable_shape(object_mask: np.ndarray, touching: np.ndarray) -> np.ndarray
 def _classify(plugins: Plugins, rgb: np.ndarray, object_mask: np.ndarray, fam: Family, settings: dict[str, Any],
               forced_subtype: str | None, hidden: np.ndarray | None = None):
     """Run the classifier chain; ``hidden`` (occluded pixels) is left out of the silhouette agreement."""
-    if forced_subtype is not None and forced_subtype not in fam.subtypes:
-        raise UnknownFamilyError(f"family {fam.name!r} has no subtype {forced_subtype!r} (subtypes: {', '.join(fam.subtypes)})")
-    subtypes = [forced_subtype] if forced_subtype else list(fam.subtypes)
-    renders_by_subtype = {s: _renders(plugins, fam, s, settings) for s in subtypes}
+    renders_by_subtype = _subtype_renders(plugins, fam, settings, forced_subtype)
     fields = dict(image=rgb, object_mask=object_mask, family=fam, renders=renders_by_subtype, settings=settings)
     context = occlusion.VisibleAgreementContext(**fields, hidden=hidden) if hidden is not None else classify.ClassifierContext(**fields)
     classifiers = sorted((c for group in plugins.hook.frontal3d_classifiers(family=fam) for c in group), key=lambda c: c.order)
@@ -484,6 +480,14 @@ def _working_similarity(full_similarity: align.Similarity, crop: _Crop) -> align
     """A template -> full-image similarity as template -> working pixels (cv2.resize's pixel centres)."""
     to_working = align.Similarity(crop.scale, 0.0, (0.5 - crop.x0) * crop.scale - 0.5, (0.5 - crop.y0) * crop.scale - 0.5)
     return to_working.compose(full_similarity)
+
+
+def _subtype_renders(plugins: Plugins, fam: Family, settings: dict[str, Any], forced_subtype: str | None) -> dict[str, TemplateRenders]:
+    """The renders of the subtypes in question: the one the user forced, else every subtype."""
+    if forced_subtype is not None and forced_subtype not in fam.subtypes:
+        raise UnknownFamilyError(f"family {fam.name!r} has no subtype {forced_subtype!r} (subtypes: {', '.join(fam.subtypes)})")
+    subtypes = [forced_subtype] if forced_subtype else list(fam.subtypes)
+    return {s: _renders(plugins, fam, s, settings) for s in subtypes}
 
 
 def _renders(plugins: Plugins, fam: Family, subtype: str, settings: dict[str, Any]) -> TemplateRenders:
