@@ -13,6 +13,7 @@ and finds nothing.
 
 from __future__ import annotations
 
+import hashlib
 import itertools
 import logging
 import os
@@ -51,6 +52,8 @@ COMPLETION_REACH = 0.04
 #: (pinky, index, thumb) attached to the wrist.
 _ARM_CHAINS = ((11, 13, 15), (12, 14, 16))
 _HAND_POINTS = {15: (17, 19, 21), 16: (18, 20, 22)}
+#: The last image's selfie segmentation and pose (see :func:`_person_and_pose`).
+_last_inference: dict[str, Any] = {}
 
 
 @dataclass
@@ -85,12 +88,12 @@ def detect_people(image: np.ndarray) -> np.ndarray | None:
     models = _load_models()
     if models is None:
         return None
+    small, (height, width) = _detection_image(image)
     with _native_logs_silenced():
-        small, (height, width) = _detection_image(image)
-        probability = models.segmenter.process(small).segmentation_mask
-        # The segmenter alone also fires on plain objects (a guitar's body); a person has a pose.
-        if (probability > 0.9).mean() < MIN_CONFIDENT_PERSON_SHARE or models.pose.process(small).pose_landmarks is None:
-            return None
+        probability, pose_result = _person_and_pose(models, small)
+    # The segmenter alone also fires on plain objects (a guitar's body); a person has a pose.
+    if pose_result is None or pose_result.pose_landmarks is None:
+        return None
     person = (probability > PERSON_PROBABILITY).astype(np.uint8)
     return cv2.resize(person, (width, height), interpolation=cv2.INTER_NEAREST) > 0
 
@@ -104,13 +107,27 @@ def _detection_image(image: np.ndarray) -> tuple[np.ndarray, tuple[int, int]]:
     return small, (height, width)
 
 
+def _person_and_pose(models: _Models, small: np.ndarray) -> tuple[np.ndarray, Any | None]:
+    """Selfie-segmentation probability and, when a person is confidently there, the pose.
+
+    Both detectors ask for these on the same image; the last answer is kept so the
+    models run once per image.
+    """
+    key = hashlib.sha1(small.tobytes()).hexdigest() + str(small.shape)
+    if _last_inference.get("models") is not models or _last_inference.get("key") != key:
+        probability = models.segmenter.process(small).segmentation_mask
+        confident = (probability > 0.9).mean() >= MIN_CONFIDENT_PERSON_SHARE
+        _last_inference.update(models=models, key=key, answer=(probability, models.pose.process(small) if confident else None))
+    return _last_inference["answer"]
+
+
 def _detect(models: _Models, image: np.ndarray, object_mask: np.ndarray | None = None) -> np.ndarray | None:
     small, (height, width) = _detection_image(image)
-    probability = models.segmenter.process(small).segmentation_mask
+    probability, pose_result = _person_and_pose(models, small)
     person = probability > PERSON_PROBABILITY
     found = _hand_mask(models.hands.process(small), person)
-    if (probability > 0.9).mean() >= MIN_CONFIDENT_PERSON_SHARE:
-        found |= _arm_band(models.pose.process(small), small.shape[:2]) & person
+    if pose_result is not None:
+        found |= _arm_band(pose_result, small.shape[:2]) & person
     if not found.any():
         return None
     if object_mask is not None:
