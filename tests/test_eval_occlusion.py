@@ -1,0 +1,102 @@
+"""The synthetic occlusion benchmark's composites (generated inputs only)."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from frontal3d.eval_occlusion import OCCLUDED_SHARE, Cutout, arm_occluder, occluder_pixels_left, paste_person, summarize
+from frontal3d.errors import InputError
+
+
+def _guitar(shape=(300, 300)) -> tuple[np.ndarray, np.ndarray]:
+    """A blue drawn guitar on black: a body ellipse and a neck."""
+    mask = np.zeros(shape, np.uint8)
+    cv2.ellipse(mask, (150, 220), (60, 70), 0, 0, 360, 1, -1)
+    mask[20:160, 140:160] = 1
+    image = np.zeros(shape + (3,), np.uint8)
+    image[mask > 0] = (40, 70, 150)
+    return image, mask > 0
+
+
+def _person() -> Cutout:
+    """A head and shoulders in a blue shirt with a pink face."""
+    mask = np.zeros((200, 160), np.uint8)
+    cv2.circle(mask, (80, 40), 30, 1, -1)
+    cv2.ellipse(mask, (80, 200), (80, 130), 0, 180, 360, 1, -1)
+    rgb = np.zeros((200, 160, 3), np.uint8)
+    rgb[:] = (40, 60, 200)
+    rgb[:75] = (230, 170, 150)
+    return Cutout("drawn", rgb, mask > 0)
+
+
+def test_an_arm_hides_a_tenth_to_a_third_of_the_object_in_skin_tones():
+    image, guitar = _guitar()
+    for seed in range(5):
+        composite = arm_occluder(image, guitar, np.random.default_rng(seed))
+        assert OCCLUDED_SHARE[0] <= composite.share(guitar) <= OCCLUDED_SHARE[1]
+        assert np.array_equal(composite.visible, guitar & ~composite.occluder)
+        painted = composite.image[composite.occluder].astype(int)
+        assert (painted[:, 0] > painted[:, 2]).mean() > 0.95  # skin: more red than blue
+        assert np.array_equal(composite.image[~composite.occluder], image[~composite.occluder])
+        # it reaches in from the image's border, as an arm does
+        border = np.concatenate([composite.occluder[0], composite.occluder[-1], composite.occluder[:, 0], composite.occluder[:, -1]])
+        assert border.any()
+
+
+@pytest.mark.parametrize("mode", ["guitarist", "whole person"])
+def test_a_pasted_person_hides_only_what_stands_in_front(mode):
+    image, guitar = _guitar()
+    composite = paste_person(image, guitar, _person(), mode, np.random.default_rng(3))
+    assert OCCLUDED_SHARE[0] <= composite.share(guitar) <= OCCLUDED_SHARE[1]
+    # the guitar is untouched where nothing is in front of it, and shows the person where something is
+    assert np.array_equal(composite.image[composite.visible], image[composite.visible])
+    assert not np.array_equal(composite.image[composite.occluder & guitar], image[composite.occluder & guitar])
+    if mode == "guitarist":  # the body is seen around the guitar but is not counted as an occluder
+        changed = np.any(composite.image != image, axis=2)
+        assert (changed & ~guitar & ~composite.occluder).sum() > composite.occluder.sum()
+
+
+def test_an_impossible_share_is_a_one_line_error():
+    image, guitar = _guitar()
+    thread = Cutout("thread", np.full((400, 1, 3), 200, np.uint8), np.ones((400, 1), bool))  # too thin to hide a tenth
+    with pytest.raises(InputError, match="10-30 %"):
+        paste_person(image, guitar, thread, "whole person", np.random.default_rng(0))
+
+
+def test_occluder_pixels_left_counts_the_occluders_own_pixels_in_the_texture():
+    image, guitar = _guitar()
+    composite = arm_occluder(image, guitar, np.random.default_rng(1))
+    rows, cols = np.nonzero(guitar)
+    window = np.s_[rows.min() - 5 : rows.max() + 6, cols.min() - 5 : cols.max() + 6]
+    as_seen = composite.image[window]
+    inpainted = np.where(composite.occluder[window][..., None], image[window], as_seen)
+    hidden_in_object = int((composite.occluder & guitar).sum())
+    assert occluder_pixels_left(np.concatenate([as_seen, as_seen], axis=1), composite.image, image, composite.occluder, guitar) == hidden_in_object
+    assert occluder_pixels_left(np.concatenate([inpainted, inpainted], axis=1), composite.image, image, composite.occluder, guitar) == 0
+
+
+def test_the_summary_compares_means_with_the_same_renders_unoccluded():
+    rows = [
+        {"mode": "guitarist", "occluded_share": 0.2, "rejected": "", "iou": 0.45, "iou_clean": 0.5, "chamfer_l1": 0.11, "chamfer_l1_clean": 0.1,
+         "fscore": 0.8, "fscore_clean": 0.8, "occluder_pixels_left": 3},
+        {"mode": "whole person", "occluded_share": 0.1, "rejected": "not frontal", "occluder_pixels_left": 0},
+    ]
+    overall = summarize(rows)[0]
+    assert overall["n"] == 2 and overall["scored"] == 1 and overall["rejected"] == 1
+    assert overall["iou_change"] == pytest.approx(-0.1)
+    assert overall["chamfer_l1_change"] == pytest.approx(0.1)
+    assert overall["occluder_pixels_left"] == 3
+
+
+def test_the_command_has_help_and_names_a_missing_input_in_one_line(tmp_path, capsys):
+    from frontal3d.cli import main
+
+    with pytest.raises(SystemExit) as exit_info:
+        main(["evaluate-occlusion", "--help"])
+    assert exit_info.value.code == 0 and "--occluders" in capsys.readouterr().out
+    argv = ["evaluate-occlusion", "--family", "guitar", "--meshes", str(tmp_path), "--renders", str(tmp_path), "--occluders", "arms", "-o", str(tmp_path / "out")]
+    assert main(argv) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("frontal3d: error: no *.glb meshes"), err
