@@ -5,6 +5,8 @@ parts. We use the offline models shipped in the mediapipe wheel for the same rol
 selfie segmentation gives the person's silhouette, the pose landmarks give the arms
 (a band around shoulder-elbow-wrist-hand, intersected with the silhouette), and the
 hand detector finds hands on their own, for close-ups that show a hand but no body.
+The face detector vouches for a person the pose model misses (a face in profile, a
+body cut by the frame or hidden behind the object).
 
 mediapipe is optional (scripts/setup.sh installs it): it is imported on first use,
 because importing it takes about a second, and without it the detector logs a warning
@@ -61,6 +63,7 @@ class _Models:
     segmenter: Any
     pose: Any
     hands: Any
+    faces: Any = None
 
 
 def detect_arms_and_hands(image: np.ndarray, object_mask: np.ndarray | None = None) -> np.ndarray | None:
@@ -78,9 +81,12 @@ def detect_arms_and_hands(image: np.ndarray, object_mask: np.ndarray | None = No
         return _detect(models, image, object_mask)
 
 
-def detect_people(image: np.ndarray) -> np.ndarray | None:
+def detect_people(image: np.ndarray, object_mask: np.ndarray | None = None) -> np.ndarray | None:
     """Bool mask (image-sized) of every person the selfie segmenter sees, or None if there is none.
 
+    The segmenter alone also fires on plain objects (a guitar's body), so a person needs a
+    pose, or a face that is mostly the person's pixels off ``object_mask`` (the pose
+    model misses people in profile, cut by the frame or half hidden behind the object).
     Whether a person stands in front of the object or behind it is not decided here:
     the occlusion stage keeps the pixels that reach into the aligned template (a torso
     in front of a guitar) and drops the others (a guitarist's body behind it).
@@ -91,11 +97,29 @@ def detect_people(image: np.ndarray) -> np.ndarray | None:
     small, (height, width) = _detection_image(image)
     with _native_logs_silenced():
         probability, pose_result = _person_and_pose(models, small)
-    # The segmenter alone also fires on plain objects (a guitar's body); a person has a pose.
-    if pose_result is None or pose_result.pose_landmarks is None:
-        return None
-    person = (probability > PERSON_PROBABILITY).astype(np.uint8)
-    return cv2.resize(person, (width, height), interpolation=cv2.INTER_NEAREST) > 0
+        if pose_result is None:
+            return None
+        person = probability > PERSON_PROBABILITY
+        if pose_result.pose_landmarks is None and not _face_off_object(models, small, person, object_mask):
+            return None
+    return cv2.resize(person.astype(np.uint8), (width, height), interpolation=cv2.INTER_NEAREST) > 0
+
+
+def _face_off_object(models: _Models, small: np.ndarray, person: np.ndarray, object_mask: np.ndarray | None) -> bool:
+    """Whether a detected face's box is mostly the person's pixels off the object (a guitar's
+    body the face detector takes for a face is on the object; a neck across a face is not most of it)."""
+    if models.faces is None:
+        return False
+    off_object = np.ones_like(person) if object_mask is None else ~(
+        cv2.resize(np.asarray(object_mask, np.uint8), person.shape[::-1], interpolation=cv2.INTER_NEAREST) > 0)
+    height, width = person.shape
+    for face in models.faces.process(small).detections or []:
+        box = face.location_data.relative_bounding_box
+        x0, y0 = max(0, round(box.xmin * width)), max(0, round(box.ymin * height))
+        x1, y1 = min(width, round((box.xmin + box.width) * width)), min(height, round((box.ymin + box.height) * height))
+        if x1 > x0 and y1 > y0 and (person & off_object)[y0:y1, x0:x1].mean() > 0.5:
+            return True
+    return False
 
 
 def _detection_image(image: np.ndarray) -> tuple[np.ndarray, tuple[int, int]]:
@@ -156,9 +180,9 @@ def _native_logs_silenced() -> Iterator[None]:
 
 @lru_cache(maxsize=1)
 def _load_models() -> _Models | None:
-    """The three mediapipe solutions, built once per process; None if mediapipe is missing."""
+    """The four mediapipe solutions, built once per process; None if mediapipe is missing."""
     try:
-        from mediapipe.python.solutions import hands, pose, selfie_segmentation
+        from mediapipe.python.solutions import face_detection, hands, pose, selfie_segmentation
     except ImportError as exc:
         log.warning("occluder detection is off: mediapipe is not installed (%s); run scripts/setup.sh", exc)
         return None
@@ -168,12 +192,14 @@ def _load_models() -> _Models | None:
             # Other complexities download their model at run time; 1 ships in the wheel.
             pose=pose.Pose(static_image_mode=True, model_complexity=1),
             hands=hands.Hands(static_image_mode=True, max_num_hands=4),
+            # The full-range model finds the small faces of people a few metres off.
+            faces=face_detection.FaceDetection(model_selection=1),
         )
         # The graphs open their inference calculators on worker threads after construction,
         # each logging a warning through absl (which no environment variable silences); one
         # run of each waits for that while stderr is still muted.
         blank = np.zeros((64, 64, 3), np.uint8)
-        for model in (models.segmenter, models.pose, models.hands):
+        for model in (models.segmenter, models.pose, models.hands, models.faces):
             model.process(blank)
     return models
 

@@ -137,7 +137,7 @@ def reconstruct(
             found = _segment(plugins, rgb, fam, fam_settings, user_mask, report)
             occluders = occlusion.find_occluders(plugins, rgb, found, fam_settings, user_occluders)
             if index == 0:
-                people = people_detector.detect_people(rgb)
+                people = people_detector.detect_people(rgb, found)
             object_mask = _choose_object(found, occluders, fam, report)
             if fam_settings["shape_prior"] and report.data["segmenter"] == "GrabCut (training-free)":
                 object_mask = _refine_with_templates(plugins, rgb, object_mask, occluders, fam, fam_settings, subtype, report)

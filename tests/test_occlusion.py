@@ -357,6 +357,30 @@ def test_the_person_segmenter_alone_finds_nobody_without_a_pose(monkeypatch):
     assert np.array_equal(detect_people(image), blob)
 
 
+def test_a_face_off_the_object_vouches_for_a_person_the_pose_model_misses(monkeypatch):
+    """A person in profile or half behind the object often has no pose; a face on the person's
+    pixels off the object still makes them a person, a "face" found on the object does not."""
+    person = np.zeros((120, 120), bool)
+    person[10:120, 10:60] = True
+    guitar = _ellipse((120, 120), (85, 70), (25, 45))
+
+    def solution(result):
+        return SimpleNamespace(process=lambda image: result)
+
+    def models(face_box):
+        box = SimpleNamespace(xmin=face_box[0] / 120, ymin=face_box[1] / 120, width=face_box[2] / 120, height=face_box[3] / 120)
+        return _Models(segmenter=solution(SimpleNamespace(segmentation_mask=np.where(person | guitar, 0.95, 0.0).astype(np.float32))),
+                       pose=solution(SimpleNamespace(pose_landmarks=None)), hands=None,
+                       faces=solution(SimpleNamespace(detections=[SimpleNamespace(location_data=SimpleNamespace(relative_bounding_box=box))])))
+
+    image = np.zeros((120, 120, 3), np.uint8)
+    monkeypatch.setattr(occluders, "_load_models", lambda: models((20, 15, 25, 25)))  # on the person's head
+    found = detect_people(image, guitar)
+    assert found is not None and found[person].all()
+    monkeypatch.setattr(occluders, "_load_models", lambda: models((72, 55, 25, 25)))  # on the guitar's body
+    assert detect_people(image, guitar) is None
+
+
 def test_only_people_reaching_into_the_template_stand_in_front():
     """A torso over the object's lower part hides it; a body beside the object, meeting the
     template only along its edge, is behind it; a dark gap the person segmenter lost next to
