@@ -47,7 +47,7 @@ SAME_COLOUR = 6
 DIFFERENT_COLOUR = 30
 PEOPLE_MODES = ("guitarist", "whole person")
 COMPOSITE_FIELDS = ("id", "composite", "occluder", "mode", "occluded_share", "rejected", "detected_fraction",
-                    "occluder_pixels_left", *METRIC_KEYS, *(f"{k}_change" for k in METRIC_KEYS),
+                    "occluder_pixels_left", *METRIC_KEYS, *(f"{k}_clean" for k in METRIC_KEYS), *(f"{k}_change" for k in METRIC_KEYS),
                     *(f"{k}_true_mask" for k in METRIC_KEYS), "error")
 
 
