@@ -155,7 +155,12 @@ def reconstruct(
         with report.stage(f"classify[{fam.name}]" if len(candidates) > 1 else "classify", progress):
             try:
                 hidden = occlusion.hidden_by(touching, object_mask) if touching.any() else None
-                decisions, picked_subtype, renders_by_subtype, context = _classify(plugins, rgb, probable, fam, fam_settings, subtype, hidden)
+                # Whether the outline next to a person is the object's is unknown, in front or
+                # behind: the person's pixels off the object do not vote on the view (on the
+                # object they are often the held object itself).
+                people_off = people_near & ~object_mask
+                view_hidden = occlusion.hidden_by(people_off, object_mask) if people_off.any() else None
+                decisions, picked_subtype, renders_by_subtype, context = _classify(plugins, rgb, probable, fam, fam_settings, subtype, hidden, view_hidden)
             except NotFrontalError as exc:
                 if len(candidates) == 1:
                     raise
@@ -202,7 +207,7 @@ def _reconstruct_shape_and_texture(
         similarity, diagnostics = align.align_template(
             renders.mask, work_shape, template_grey, work_grey, max_angle=np.deg2rad(settings["max_angle_deg"])
         )
-        if isinstance(context, occlusion.VisibleAgreementContext):
+        if isinstance(context, occlusion.VisibleAgreementContext) and context.hidden is not None:
             # Under occluders the mutual information also sees skin inside the probable
             # shape and can turn the template far off (53 degrees on a guitar whose tail
             # an arm covers); the classifier placed it by the visible silhouette alone.
@@ -454,11 +459,15 @@ def _probable_shape(object_mask: np.ndarray, touching: np.ndarray) -> np.ndarray
 
 
 def _classify(plugins: Plugins, rgb: np.ndarray, object_mask: np.ndarray, fam: Family, settings: dict[str, Any],
-              forced_subtype: str | None, hidden: np.ndarray | None = None):
-    """Run the classifier chain; ``hidden`` (occluded pixels) is left out of the silhouette agreement."""
+              forced_subtype: str | None, hidden: np.ndarray | None = None, view_hidden: np.ndarray | None = None):
+    """Run the classifier chain; ``hidden`` (occluded pixels) is left out of the silhouette
+    agreement, ``view_hidden`` (pixels that may or may not be the object's) out of the frontal gate's."""
     renders_by_subtype = _subtype_renders(plugins, fam, settings, forced_subtype)
     fields = dict(image=rgb, object_mask=object_mask, family=fam, renders=renders_by_subtype, settings=settings)
-    context = occlusion.VisibleAgreementContext(**fields, hidden=hidden) if hidden is not None else classify.ClassifierContext(**fields)
+    if hidden is None and view_hidden is None:
+        context = classify.ClassifierContext(**fields)
+    else:
+        context = occlusion.VisibleAgreementContext(**fields, hidden=hidden, view_hidden=view_hidden)
     classifiers = sorted((c for group in plugins.hook.frontal3d_classifiers(family=fam) for c in group), key=lambda c: c.order)
     decisions = []
     picked = forced_subtype

@@ -400,3 +400,25 @@ def test_only_people_reaching_into_the_template_stand_in_front():
     assert found[gap & template].mean() > 0.9
     assert not found[body_behind].any()
     assert not (found & object_mask).any()
+
+
+def test_a_person_beside_the_object_does_not_count_against_the_front_view():
+    """A torso over a guitar's lower body that is not recognised as in front leaves a bitten
+    outline; the person's pixels off the guitar say nothing about the view, so the frontal gate
+    leaves them out (and accepts), while the subtype scores still count them."""
+    from frontal3d.stages.classify import FrontalGate
+
+    image, guitar = _drawn_guitar((240, 240))
+    person = np.zeros(guitar.shape, bool)
+    person[150:, 20:125] = True
+    visible = guitar & ~person
+    family = Family(name="guitar", subtypes=("electric",), canonical_view="front", regions={"electric": ("body",)}, real_size={"electric": 1.0})
+
+    def context(view_hidden):
+        return VisibleAgreementContext(image=image, object_mask=visible, family=family, renders={"electric": _flat_renders(guitar)},
+                                       settings={"max_angle_deg": 30.0, "frontal_threshold": 0.6}, view_hidden=view_hidden)
+
+    plain, beside_person = context(None), context(hidden_by(person & ~visible, visible))
+    assert not FrontalGate().classify(plain).accepted  # agreement x foreshortening 0.47
+    assert FrontalGate().classify(beside_person).accepted  # 0.77
+    assert beside_person.agreement()["electric"].iou == pytest.approx(plain.agreement()["electric"].iou)

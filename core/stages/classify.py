@@ -83,6 +83,10 @@ class ClassifierContext:
             self._agreement = silhouette_agreement(self.object_mask, self.renders, max_angle)
         return self._agreement
 
+    def view_agreement(self) -> dict[str, Agreement]:
+        """The agreement the frontal gate judges the view by (the same unless a context hides more from it)."""
+        return self.agreement()
+
     def turn_evidence(self) -> TurnEvidence:
         """Best canonical-view vs best turned-view template agreement with the outline."""
         if self._turn_evidence is None:
@@ -139,7 +143,7 @@ class FrontalGate:
     order = 10
 
     def classify(self, context: ClassifierContext) -> Decision:
-        agreement = context.agreement()
+        agreement = context.view_agreement()
         scores = {
             subtype: found.iou * foreshortening(context.object_mask, context.renders[subtype], found.similarity)
             for subtype, found in agreement.items()

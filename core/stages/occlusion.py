@@ -121,17 +121,34 @@ def in_front(people: np.ndarray, object_mask: np.ndarray, aligned_template_mask:
 class VisibleAgreementContext(ClassifierContext):
     """A classifier context whose silhouette agreement is scored only where the object is
     seen: ``hidden`` pixels (see :func:`hidden_by`) must not vote, or an arm across a
-    classical guitar's waist, filled in as body, makes its outline look electric."""
+    classical guitar's waist, filled in as body, makes its outline look electric.
+
+    ``view_hidden`` is hidden from the frontal gate only: people touching the object whose
+    pixels may be in front of it or behind it. Whether the outline there is the object's
+    is unknown, which is no evidence against a front view; the subtype still sees them, as a
+    guitarist's body behind a small electric body must not let a large classical body fit.
+    """
 
     hidden: np.ndarray | None = None
+    view_hidden: np.ndarray | None = None
+    _view_agreement: dict[str, Agreement] | None = field(default=None, repr=False)
 
     def agreement(self) -> dict[str, Agreement]:
         if self._agreement is None:
-            self._agreement = {
-                subtype: Agreement(iou=seen_iou(self.renders[subtype].mask, found.similarity, self.object_mask, self.hidden), similarity=found.similarity)
-                for subtype, found in super().agreement().items()
-            }
+            self._agreement = self._seen(super().agreement(), self.hidden)
         return self._agreement
+
+    def view_agreement(self) -> dict[str, Agreement]:
+        if self.view_hidden is None:
+            return self.agreement()
+        if self._view_agreement is None:
+            hidden = self.view_hidden if self.hidden is None else self.view_hidden | self.hidden
+            self._view_agreement = self._seen(self.agreement(), hidden)
+        return self._view_agreement
+
+    def _seen(self, placed: dict[str, Agreement], hidden: np.ndarray | None) -> dict[str, Agreement]:
+        return {subtype: Agreement(iou=seen_iou(self.renders[subtype].mask, found.similarity, self.object_mask, hidden), similarity=found.similarity)
+                for subtype, found in placed.items()}
 
 
 def seen_iou(template_mask: np.ndarray, similarity: Similarity, object_mask: np.ndarray, hidden: np.ndarray | None) -> float:
