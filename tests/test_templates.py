@@ -209,3 +209,28 @@ def test_airplane_fin_points_up_and_wings_are_thin() -> None:
         wings = built.face_regions == built.region_names.index("wings")
         tip_faces = wings & (np.abs(built.mesh.triangles_center[:, 0]) > 0.8 * built.mesh.extents[0] / 2)
         assert np.ptp(built.mesh.triangles_center[tip_faces, 2]) < 0.05 * built.mesh.extents[0]
+
+
+def _wing_plane_z(built) -> float:
+    """Mean height of the wing's faces at 45-70 % of the half-span."""
+    centres = built.mesh.triangles_center
+    wings = built.face_regions == built.region_names.index("wings")
+    reach = np.abs(centres[:, 0]) / (built.mesh.extents[0] / 2)
+    return float(centres[wings & (reach > 0.45) & (reach < 0.7), 2].mean())
+
+
+def test_airliner_fin_tip_stands_under_a_fifth_of_the_length_above_the_wing() -> None:
+    # Real airliner models: median 0.17 of the length; the fin sets the top of the box the
+    # point metrics centre on, so a taller one lowers the whole wing plane against the truth.
+    built = template("airplane", "airliner")
+    rise = (built.mesh.bounds[1, 2] - _wing_plane_z(built)) / built.mesh.extents[1]
+    assert 0.16 < rise < 0.21
+
+
+def test_fighter_has_a_canopy_above_its_fuselage_ahead_of_the_wing() -> None:
+    # Real fighter models reach 0.066 of the length above the wing at the cockpit; a plain tube 0.037.
+    built = template("airplane", "fighter")
+    vertices = built.mesh.vertices
+    length = built.mesh.extents[1]
+    cockpit = (np.abs(vertices[:, 0]) < 0.3) & (vertices[:, 1] > 0.05 * length) & (vertices[:, 1] < 0.25 * length)
+    assert (vertices[cockpit, 2].max() - _wing_plane_z(built)) / length > 0.055

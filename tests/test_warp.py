@@ -195,3 +195,32 @@ def test_empty_mask_and_degenerate_pivots_are_user_errors():
         warp_template_to_silhouette(np.zeros((50, 50), bool), maps, identity, pivots, pivots)
     with pytest.raises(InputError, match="pivots"):
         mls_inverse_map(np.ones((5, 2)), np.zeros((5, 2)), (10, 10))
+
+
+def _shrunk_scene(maps, shift):
+    """The template placed at 0.6x (each image pixel stands for 1.7 template pixels), identity MLS."""
+    to_image = _similarity(0.6, 0.0, 10.0 + shift, 8.0 + 0.7 * shift)
+    src_pivots = _apply(to_image, _template_contour(maps["mask"]))
+    to_template = np.linalg.inv(np.vstack([to_image, [0, 0, 1]]))[:2]
+    object_mask, _ = _snowman(_apply(to_template, _pixel_grid((100, 100))))
+    return object_mask, warp_template_to_silhouette(object_mask, maps, to_image, src_pivots, src_pivots.copy())
+
+
+def test_a_one_pixel_ridge_keeps_its_height_when_the_warp_shrinks_the_template():
+    # An airplane's fin seen from above: one template pixel wide, far above the body.
+    maps = _template_maps()
+    maps["front_depth"][50:90, 64] = 0.5
+    maps["back_depth"][50:90, 63] = -0.4
+    for shift in np.linspace(0.0, 1.0, 6):
+        _, result = _shrunk_scene(maps, shift)
+        assert np.nanmax(result.front_depth) == pytest.approx(0.5)
+        assert np.nanmin(result.back_depth) == pytest.approx(-0.4)
+
+
+def test_smooth_depth_is_not_moved_by_the_ridge_keeping():
+    maps = _template_maps()
+    object_mask, result = _shrunk_scene(maps, 0.37)
+    interior = ndimage.binary_erosion(object_mask, iterations=2)
+    expected = 0.05 - 1e-6 * np.square(result.source_coords - [64, 70]).sum(-1)
+    # the slope of the dome over half a 3-pixel window, at most
+    np.testing.assert_allclose(result.front_depth[interior], expected[interior], atol=2e-4)

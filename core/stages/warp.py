@@ -221,6 +221,39 @@ def warp_maps(maps: dict[str, np.ndarray], source_coords: np.ndarray, nearest: s
     return warped
 
 
+#: Sides (template pixels) of the footprints :func:`fit_silhouette` keeps ridges over.
+RIDGE_WINDOWS = (1, 3, 5, 9, 17, 33)
+
+
+def footprint_windows(source_coords: np.ndarray) -> np.ndarray:
+    """Per output pixel, the side of the smallest of ``RIDGE_WINDOWS`` that covers the
+    square of template pixels the pixel stands for (its source spacing to its neighbours)."""
+    step_x = np.hypot(*np.gradient(source_coords[..., 0]))
+    step_y = np.hypot(*np.gradient(source_coords[..., 1]))
+    spacing = np.maximum(step_x, step_y)
+    windows = np.asarray(RIDGE_WINDOWS)
+    return windows[np.minimum(np.searchsorted(windows, spacing), len(windows) - 1)]
+
+
+def keep_ridges(depth: np.ndarray, valid: np.ndarray, window: int, highest: bool) -> np.ndarray:
+    """``depth`` with each valid pixel replaced by the highest (or lowest) valid depth in a
+    ``window``-square around it.
+
+    Where the warp shrinks the template, one output pixel stands for several template
+    pixels but samples only one point among them: a part a pixel or two wide seen
+    edge-on (an airplane's fin from above) was kept or lost depending on where that
+    point fell, so its height, and with it the object's depth extent, changed with
+    sub-pixel shifts of the alignment or vanished where the warp squeezes the template.
+    The highest front (lowest back) depth under the footprint keeps such parts whole;
+    on smooth surfaces it moves depth by at most the slope over half a window.
+    """
+    if window <= 1:
+        return depth
+    padded = np.where(valid, depth, -np.inf if highest else np.inf).astype(np.float32)
+    extreme = (ndimage.maximum_filter if highest else ndimage.minimum_filter)(padded, size=window, mode="nearest")
+    return np.where(valid, extreme, np.nan).astype(np.float32)
+
+
 def fit_silhouette(
     object_mask: np.ndarray, template_maps: dict[str, np.ndarray], source_coords: np.ndarray
 ) -> dict[str, np.ndarray]:
@@ -260,8 +293,16 @@ def fit_silhouette(
         values = np.array(template_maps[name], dtype=np.float32)
         values[~template_valid] = np.nan
         float_maps[name] = values
+    windows = footprint_windows(source_coords)
+    used = [int(w) for w in np.unique(windows[object_mask]) if w > 1]
+    for name, highest in (("front_depth", True), ("back_depth", False)):
+        for window in used:
+            float_maps[f"{name}@{window}"] = keep_ridges(float_maps[name], template_valid, window, highest)
     label_maps = {name: np.asarray(template_maps[name]) for name in ("front_regions", "back_regions")}
     warped = warp_maps({**float_maps, **label_maps}, sample_coords, nearest=set(label_maps))
+    for name in ("front_depth", "back_depth"):
+        for window in used:
+            warped[name] = np.where(windows == window, warped.pop(f"{name}@{window}"), warped[name])
 
     fitted: dict[str, np.ndarray] = {"mask": object_mask.copy()}
     for name in ("front_depth", "back_depth"):
