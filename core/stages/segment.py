@@ -199,7 +199,8 @@ def _initial_labels(lab: np.ndarray, background: np.ndarray, border_mask: np.nda
     # Border pixels are the background's own spread (noise, texture): beyond it is "different".
     spread = float(np.percentile(distance[border_mask], 98))
     margin = (STRONG_DIFFERENCE - 1) * spread
-    textured = float(np.median(_fine_texture(residual[..., 0])[border_mask])) >= TEXTURED_BORDER
+    texture = _fine_texture(residual[..., 0])
+    textured = float(np.median(texture[border_mask])) >= TEXTURED_BORDER
     threshold = max(6.0, spread + (min(margin, MAX_DIFFERENCE_MARGIN) if textured else margin))
     different = cv2.morphologyEx((distance > threshold).astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8)) > 0
     # Hysteresis: weaker differences (from the background's median colour, which unlike
@@ -214,7 +215,7 @@ def _initial_labels(lab: np.ndarray, background: np.ndarray, border_mask: np.nda
         weak = cv2.morphologyEx(((offset > weak_threshold) & object_like).astype(np.uint8), cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7)))
         _, weak_labels = cv2.connectedComponents(weak | different.astype(np.uint8), connectivity=8)
         different |= np.isin(weak_labels, np.unique(weak_labels[different])) & (weak_labels > 0)
-    candidates = (different | _smoother_than_background(residual[..., 0], border_mask) | _enclosed_by_edges(lab, border_mask)) & ~border_mask
+    candidates = (different | _smoother_than_background(texture, border_mask) | _enclosed_by_edges(lab, border_mask)) & ~border_mask
     salient = np.zeros_like(different)
     for component in split_objects(candidates):
         salient |= component
@@ -229,9 +230,9 @@ def _initial_labels(lab: np.ndarray, background: np.ndarray, border_mask: np.nda
     return init
 
 
-def _smoother_than_background(lightness: np.ndarray, border_mask: np.ndarray) -> np.ndarray:
-    """Where a textured background (paper, fabric, sensor grain) gives way to a smooth surface."""
-    texture = _fine_texture(lightness)
+def _smoother_than_background(texture: np.ndarray, border_mask: np.ndarray) -> np.ndarray:
+    """Where a textured background (paper, fabric, sensor grain) gives way to a smooth surface
+    (``texture``: :func:`_fine_texture` of the lightness)."""
     floor = float(np.percentile(texture[border_mask], 5))
     smooth = texture < SMOOTHNESS_RATIO * floor
     return cv2.morphologyEx(smooth.astype(np.uint8), cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))) > 0
