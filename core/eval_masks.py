@@ -25,7 +25,7 @@ from __future__ import annotations
 import csv
 import statistics
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -35,6 +35,7 @@ import numpy as np
 from frontal3d.errors import ConfigError, Frontal3DError, InputError
 from frontal3d.imageio import read_image
 from frontal3d.photo_render import composite
+from frontal3d.pipeline import Report, segment_object
 from frontal3d.plugins import Plugins
 from frontal3d.synth import linear_gradient, random_colour, smooth_noise, soft_blobs
 
@@ -45,7 +46,6 @@ SENSOR_NOISE = 3.0
 TARGET_IOU = 0.95
 #: Side of each panel of a debug sheet.
 SHEET_PANEL = 256
-ROW_FIELDS = ("family", "render", "background", "iou", "seconds", "segmenter", "error")
 
 
 @dataclass
@@ -127,8 +127,6 @@ def evaluate_masks(plugins: Plugins, family: str, renders_dir: Path, out_dir: Pa
     into ``out_dir``, and with ``debug`` a sheet per composite in ``out_dir/debug``:
     the input, the found mask (misses blue, false positives red) and the truth.
     """
-    from frontal3d.pipeline import Report, segment_object
-
     for kind in backgrounds:
         if kind not in BACKGROUNDS:
             raise ConfigError(f"unknown background {kind!r} (choose from {', '.join(BACKGROUNDS)})")
@@ -177,7 +175,7 @@ def _debug_sheet(photo: np.ndarray, found: np.ndarray, truth: np.ndarray) -> np.
 
 def _write(out_dir: Path, scores: list[MaskScore]) -> None:
     with (out_dir / "masks.csv").open("w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=ROW_FIELDS)
+        writer = csv.DictWriter(handle, fieldnames=[field.name for field in fields(MaskScore)])
         writer.writeheader()
         writer.writerows(asdict(score) for score in scores)
     with (out_dir / "summary.csv").open("w", newline="") as handle:

@@ -81,3 +81,5 @@ def test_evaluate_masks_gives_one_line_errors(tmp_path, capsys):
     assert "unknown background 'stripes'" in capsys.readouterr().err
     assert main(["evaluate-masks", "--family", "guitar", "--renders", str(tmp_path / "empty"), "-o", str(tmp_path / "o")]) != 0
     assert "no <id>.png renders" in capsys.readouterr().err
+    assert main(["evaluate-masks", "--family", "guitar", "--renders", str(renders), "--every", "2", "--offset", "2", "-o", str(tmp_path / "o")]) != 0
+    assert "--offset in 0 .. every-1" in capsys.readouterr().err
