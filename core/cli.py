@@ -116,6 +116,18 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--out", type=Path, default=Path("frontal3d-eval-occlusion"), help="output folder")
     p.set_defaults(run=_cmd_evaluate_occlusion)
 
+    p = sub.add_parser("evaluate-masks", help="score the segmenter chain on renders composited over procedural backgrounds", description="Composite each RGBA render (alpha = silhouette) over seeded procedural backgrounds with sensor noise, segment it as reconstruct does with no mask given, and score the mask IoU against the alpha. Writes masks.csv (per image) and summary.csv (per background); backgrounds are defined in docs/results.md.")
+    p.add_argument("--family", required=True)
+    p.add_argument("--renders", type=Path, required=True, help="folder of <id>.png RGBA renders")
+    p.add_argument("--backgrounds", help="comma-separated subset of plain,gradient,noise,mild,blobs (default: all)")
+    p.add_argument("--every", type=int, default=1, help="use every N-th render of the sorted listing (default: 1)")
+    p.add_argument("--offset", type=int, default=0, help="start at this index of the listing, below --every (default: 0; 1 with --every 2 = the odd half)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the backgrounds and the sensor noise")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a family setting, e.g. --set shape_prior=true")
+    p.add_argument("-o", "--out", type=Path, default=Path("frontal3d-masks"), help="output folder (default: ./frontal3d-masks)")
+    p.add_argument("-v", "--verbose", action="store_true", help="also write a debug sheet per image to OUT/debug (input | mask | truth)")
+    p.set_defaults(run=_cmd_evaluate_masks)
+
     p = sub.add_parser("bench", help="time each stage and measure peak memory", description="Reconstruct an image several times and print per-stage seconds and peak memory.")
     p.add_argument("image", type=Path, nargs="?", help="input photo (default: the bundled example)")
     p.add_argument("--family", default="auto")
@@ -301,6 +313,21 @@ def _cmd_evaluate_occlusion(args: argparse.Namespace) -> int:
                                     per_object=args.per_object, limit=args.limit, settings=_parse_sets(args.set), progress=sys.stderr.isatty())
     print("\n".join(summary_lines(summarize(rows))))
     print(f"wrote {args.out}/composites.csv, summary.csv, images/")
+    return 0
+
+
+def _cmd_evaluate_masks(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from frontal3d.eval_masks import BACKGROUNDS, evaluate_masks, render_paths, summary_lines
+
+    backgrounds = [b.strip() for b in args.backgrounds.split(",") if b.strip()] if args.backgrounds else list(BACKGROUNDS)
+    total = len(render_paths(args.renders, args.every, args.offset)) * len(backgrounds)
+    with tqdm(total=total, unit="image", file=sys.stderr, disable=not sys.stderr.isatty(), leave=False) as bar:
+        scores = evaluate_masks(_plugins(args), args.family, args.renders, args.out, backgrounds, every=args.every, offset=args.offset,
+                                seed=args.seed, debug=args.verbose, settings=_parse_sets(args.set), progress=bar.update)
+    print("\n".join(summary_lines(scores)))
+    print(f"wrote {args.out}/masks.csv, summary.csv" + (f" and debug sheets in {args.out}/debug" if args.verbose else ""))
     return 0
 
 

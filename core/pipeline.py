@@ -134,13 +134,9 @@ def reconstruct(
     for index, fam in enumerate(candidates):
         fam_settings = plugins.settings(fam.name, settings)
         with report.stage(f"segment[{fam.name}]" if len(candidates) > 1 else "segment", progress):
-            found = _segment(plugins, rgb, fam, fam_settings, user_mask, report)
-            occluders = occlusion.find_occluders(plugins, rgb, found, fam_settings, user_occluders)
+            object_mask, occluders = segment_object(plugins, rgb, fam, fam_settings, user_mask, user_occluders, subtype, report)
             if index == 0:
-                people = people_detector.detect_people(rgb, found)
-            object_mask = _choose_object(found, occluders, fam, report)
-            if fam_settings["shape_prior"] and report.data["segmenter"] == "GrabCut (training-free)":
-                object_mask = _refine_with_templates(plugins, rgb, object_mask, occluders, fam, fam_settings, subtype, report)
+                people = people_detector.detect_people(rgb, object_mask)
             touching = _touching(occluders, object_mask)
             # People touching the object may stand in front of it or behind it: the template
             # placed on the object tells which, here for the classifiers and the alignment,
@@ -311,6 +307,22 @@ def _reconstruct_shape_and_texture(
     report.data["seconds_total"] = round(sum(report.data["stages"].values()), 3)
     maps["object_mask"] = work_mask
     return Reconstruction(textured=textured, landmarks=landmarks, report=report.data, maps=maps)
+
+
+def segment_object(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dict[str, Any], user_mask: np.ndarray | None = None,
+                   user_occluders: np.ndarray | None = None, subtype: str | None = None,
+                   report: Report | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+    """The object's mask and the occluders, as reconstruction finds them before classifying:
+    the segmenter chain, the occluder detectors, the object chosen among the pieces and,
+    with the ``shape_prior`` setting, GrabCut's mask cut again with the templates.
+    The mask benchmark (frontal3d.eval_masks) scores exactly this."""
+    report = report or Report()
+    found = _segment(plugins, rgb, fam, settings, user_mask, report)
+    occluders = occlusion.find_occluders(plugins, rgb, found, settings, user_occluders)
+    object_mask = _choose_object(found, occluders, fam, report)
+    if settings["shape_prior"] and report.data["segmenter"] == "GrabCut (training-free)":
+        object_mask = _refine_with_templates(plugins, rgb, object_mask, occluders, fam, settings, subtype, report)
+    return object_mask, occluders
 
 
 def _segment(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dict[str, Any], user_mask: np.ndarray | None, report: Report) -> np.ndarray:

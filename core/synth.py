@@ -165,10 +165,10 @@ def _paint(regions: np.ndarray, points: np.ndarray, region_names: tuple[str, ...
         if not inside.any():
             continue
         dark = name in DARK_REGIONS and rng.random() < 0.8
-        colour = _random_colour(rng, dark)
+        colour = random_colour(rng, dark)
         pattern = rng.integers(3)
         if pattern == 1:
-            modulation = 1 + 0.25 * _smooth_noise(resolution, rng, cells=rng.integers(4, 24))
+            modulation = 1 + 0.25 * smooth_noise(resolution, rng, cells=rng.integers(4, 24))
         elif pattern == 2:
             direction = _unit(rng.normal(size=2))
             phase = points @ direction * rng.uniform(8, 40) + rng.uniform(0, 2 * np.pi)
@@ -179,7 +179,7 @@ def _paint(regions: np.ndarray, points: np.ndarray, region_names: tuple[str, ...
     return albedo
 
 
-def _random_colour(rng: np.random.Generator, dark: bool) -> np.ndarray:
+def random_colour(rng: np.random.Generator, dark: bool) -> np.ndarray:
     """An RGB colour (0-255) of random hue; dark ones keep value below 60."""
     hue, saturation = rng.uniform(0, 180), rng.uniform(0, 255)
     value = rng.uniform(10, 60) if dark else rng.uniform(70, 255)
@@ -187,7 +187,7 @@ def _random_colour(rng: np.random.Generator, dark: bool) -> np.ndarray:
     return cv2.cvtColor(hsv, cv2.COLOR_HSV2RGB)[0, 0].astype(np.float64)
 
 
-def _smooth_noise(resolution: int, rng: np.random.Generator, cells: int) -> np.ndarray:
+def smooth_noise(resolution: int, rng: np.random.Generator, cells: int) -> np.ndarray:
     """Value noise in [-1, 1]: a coarse random grid resized smoothly to the image."""
     coarse = rng.uniform(-1, 1, size=(int(cells), int(cells))).astype(np.float32)
     return cv2.resize(coarse, (resolution, resolution), interpolation=cv2.INTER_CUBIC).clip(-1, 1).astype(np.float64)
@@ -195,24 +195,33 @@ def _smooth_noise(resolution: int, rng: np.random.Generator, cells: int) -> np.n
 
 def _background(resolution: int, rng: np.random.Generator) -> np.ndarray:
     """A gradient between two random colours, with value noise and random soft blobs."""
-    start, end = _random_colour(rng, False), _random_colour(rng, rng.random() < 0.3)
-    direction = _unit(rng.normal(size=2))
+    start, end = random_colour(rng, False), random_colour(rng, rng.random() < 0.3)
+    background = linear_gradient(resolution, start, end, _unit(rng.normal(size=2)))
+    background *= 1 + 0.2 * smooth_noise(resolution, rng, cells=rng.integers(3, 32))[..., None]
+    return soft_blobs(background, rng, int(rng.integers(0, 6)))
+
+
+def linear_gradient(resolution: int, start: np.ndarray, end: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """A square image ramping from colour ``start`` to ``end`` along the unit 2D ``direction``."""
     axis = np.linspace(-1, 1, resolution)
     ramp = (np.add.outer(axis * direction[1], axis * direction[0]) / np.sqrt(2) + 1) / 2
-    background = start * (1 - ramp[..., None]) + end * ramp[..., None]
-    background *= 1 + 0.2 * _smooth_noise(resolution, rng, cells=rng.integers(3, 32))[..., None]
+    return start * (1 - ramp[..., None]) + end * ramp[..., None]
+
+
+def soft_blobs(background: np.ndarray, rng: np.random.Generator, count: int, opacity: float = 1.0) -> np.ndarray:
+    """``background`` (square) with ``count`` random ellipses of random colours blended in with soft edges."""
+    resolution = background.shape[0]
     blobs = np.zeros((resolution, resolution, 3), np.float32)
     weight = np.zeros((resolution, resolution), np.float32)
-    for _ in range(rng.integers(0, 6)):
+    for _ in range(count):
         centre = tuple(int(v) for v in rng.integers(0, resolution, size=2))
         axes = tuple(int(v) for v in rng.integers(resolution // 20, resolution // 4, size=2))
         spot = np.zeros((resolution, resolution), np.float32)
         cv2.ellipse(spot, centre, axes, float(rng.uniform(0, 180)), 0, 360, 1.0, -1)
-        blobs[spot > 0] = _random_colour(rng, rng.random() < 0.3)
+        blobs[spot > 0] = random_colour(rng, rng.random() < 0.3)
         weight = np.maximum(weight, spot)
-    weight = cv2.GaussianBlur(weight, (0, 0), max(1.0, resolution / 100))[..., None]
-    background = background * (1 - weight) + blobs * weight
-    return np.clip(background, 0, 255)
+    weight = opacity * cv2.GaussianBlur(weight, (0, 0), max(1.0, resolution / 100))[..., None]
+    return np.clip(background * (1 - weight) + blobs * weight, 0, 255)
 
 
 def _face_normals(triangles: np.ndarray) -> np.ndarray:

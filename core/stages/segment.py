@@ -47,6 +47,13 @@ MAX_CLUSTER_SAMPLES = 20000
 #: Multiple of the border's colour spread (98th percentile) beyond which a pixel is
 #: surely not background.
 STRONG_DIFFERENCE = 3.0
+#: On a textured background the border's spread is the texture's own range: beyond it by
+#: this much (Lab units), at most, a pixel is surely not background however wide the
+#: range. (A spread from several colour regions, a scene or blobs, keeps the full margin.)
+MAX_DIFFERENCE_MARGIN = 15.0
+#: Median fine-scale texture of the border (lightness units, :func:`_fine_texture`) from
+#: which the background counts as textured; sensor noise alone gives about 0.5.
+TEXTURED_BORDER = 1.5
 #: A weakly different pixel is object-like when its distance to the object's colours is
 #: below this multiple of its distance to the background's.
 OBJECT_LIKENESS = 2.0
@@ -191,7 +198,10 @@ def _initial_labels(lab: np.ndarray, background: np.ndarray, border_mask: np.nda
     distance = _distance_to_colours(smoothed, smoothed[border_mask])
     # Border pixels are the background's own spread (noise, texture): beyond it is "different".
     spread = float(np.percentile(distance[border_mask], 98))
-    threshold = max(6.0, STRONG_DIFFERENCE * spread)
+    margin = (STRONG_DIFFERENCE - 1) * spread
+    texture = _fine_texture(residual[..., 0])
+    textured = float(np.median(texture[border_mask])) >= TEXTURED_BORDER
+    threshold = max(6.0, spread + (min(margin, MAX_DIFFERENCE_MARGIN) if textured else margin))
     different = cv2.morphologyEx((distance > threshold).astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8)) > 0
     # Hysteresis: weaker differences (from the background's median colour, which unlike
     # its clusters does not also cover a surface slightly off it) count where they look
@@ -205,7 +215,7 @@ def _initial_labels(lab: np.ndarray, background: np.ndarray, border_mask: np.nda
         weak = cv2.morphologyEx(((offset > weak_threshold) & object_like).astype(np.uint8), cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7)))
         _, weak_labels = cv2.connectedComponents(weak | different.astype(np.uint8), connectivity=8)
         different |= np.isin(weak_labels, np.unique(weak_labels[different])) & (weak_labels > 0)
-    candidates = (different | _smoother_than_background(residual[..., 0], border_mask) | _enclosed_by_edges(lab, border_mask)) & ~border_mask
+    candidates = (different | _smoother_than_background(texture, border_mask) | _enclosed_by_edges(lab, border_mask)) & ~border_mask
     salient = np.zeros_like(different)
     for component in split_objects(candidates):
         salient |= component
@@ -220,13 +230,18 @@ def _initial_labels(lab: np.ndarray, background: np.ndarray, border_mask: np.nda
     return init
 
 
-def _smoother_than_background(lightness: np.ndarray, border_mask: np.ndarray) -> np.ndarray:
-    """Where a textured background (paper, fabric, sensor grain) gives way to a smooth surface."""
-    fine = cv2.GaussianBlur(lightness, (0, 0), 1.0) - cv2.GaussianBlur(lightness, (0, 0), 3.0)
-    texture = np.sqrt(cv2.GaussianBlur(fine * fine, (0, 0), 4.0))
+def _smoother_than_background(texture: np.ndarray, border_mask: np.ndarray) -> np.ndarray:
+    """Where a textured background (paper, fabric, sensor grain) gives way to a smooth surface
+    (``texture``: :func:`_fine_texture` of the lightness)."""
     floor = float(np.percentile(texture[border_mask], 5))
     smooth = texture < SMOOTHNESS_RATIO * floor
     return cv2.morphologyEx(smooth.astype(np.uint8), cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))) > 0
+
+
+def _fine_texture(lightness: np.ndarray) -> np.ndarray:
+    """Local energy of the lightness' fine detail (band 1-3 px): grain, weave, print."""
+    fine = cv2.GaussianBlur(lightness, (0, 0), 1.0) - cv2.GaussianBlur(lightness, (0, 0), 3.0)
+    return np.sqrt(cv2.GaussianBlur(fine * fine, (0, 0), 4.0))
 
 
 def _enclosed_by_edges(lab: np.ndarray, border_mask: np.ndarray) -> np.ndarray:
