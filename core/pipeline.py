@@ -155,7 +155,7 @@ def reconstruct(
         with report.stage(f"classify[{fam.name}]" if len(candidates) > 1 else "classify", progress):
             try:
                 hidden = occlusion.hidden_by(touching, object_mask) if touching.any() else None
-                decisions, picked_subtype, renders_by_subtype, context = _classify(plugins, rgb, probable, fam, fam_settings, subtype, hidden)
+                decisions, picked_subtype, renders_by_subtype, context = run_classifiers(plugins, rgb, probable, fam, fam_settings, subtype, hidden)
             except NotFrontalError as exc:
                 if len(candidates) == 1:
                     raise
@@ -453,9 +453,14 @@ def _probable_shape(object_mask: np.ndarray, touching: np.ndarray) -> np.ndarray
     return object_mask | (touching & (hull > 0))
 
 
-def _classify(plugins: Plugins, rgb: np.ndarray, object_mask: np.ndarray, fam: Family, settings: dict[str, Any],
-              forced_subtype: str | None, hidden: np.ndarray | None = None):
-    """Run the classifier chain; ``hidden`` (occluded pixels) is left out of the silhouette agreement."""
+def run_classifiers(plugins: Plugins, rgb: np.ndarray, object_mask: np.ndarray, fam: Family, settings: dict[str, Any],
+                    forced_subtype: str | None = None, hidden: np.ndarray | None = None):
+    """Run the classifier chain: (decisions, subtype, renders by subtype, context).
+
+    Raises :class:`NotFrontalError` with the rejecting classifier's reason; ``hidden``
+    (occluded pixels) is left out of the silhouette agreement. Also the gate benchmark's
+    entry point (:mod:`frontal3d.eval_gate`).
+    """
     renders_by_subtype = _subtype_renders(plugins, fam, settings, forced_subtype)
     fields = dict(image=rgb, object_mask=object_mask, family=fam, renders=renders_by_subtype, settings=settings)
     context = occlusion.VisibleAgreementContext(**fields, hidden=hidden) if hidden is not None else classify.ClassifierContext(**fields)
