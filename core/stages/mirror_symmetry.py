@@ -11,7 +11,9 @@ object of the same kind explains the outline just as well.
 The object's best mirror line is searched near the axis of the aligned template
 (the similarity found by the silhouette alignment carries the template's axis onto
 the image), and its mirror agreement is compared with the template's own: a template
-that is itself asymmetric (an electric guitar's cutaway) sets a lower bar.
+that is itself asymmetric (an electric guitar's cutaway) sets a lower bar. Families
+switch it on with ``mirror_margin``; guitars do not, since real guitar bodies (basses,
+single cutaways) are less symmetric than the templates even when seen straight on.
 """
 
 from __future__ import annotations
