@@ -128,6 +128,18 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-v", "--verbose", action="store_true", help="also write a debug sheet per image to OUT/debug (input | mask | truth)")
     p.set_defaults(run=_cmd_evaluate_masks)
 
+    p = sub.add_parser("evaluate-gate", help="measure the frontal gate on ground-truth meshes turned away from the canonical view", description="Render each ground-truth mesh (canonical frame) turned about image-up and image-right by each angle, both ways, as a shaded frontal image, run the classifier chain on it with the true mask given, and print the acceptance per angle and the balanced accuracy (0 deg, and 0-10 deg, accepted vs >= 30 deg rejected). Writes OUT/gate.csv (one row per mesh and view, with the gate's reason) and OUT/summary.txt.")
+    p.add_argument("--family", required=True)
+    p.add_argument("--meshes", type=Path, required=True, help="folder of ground-truth *.glb in the family's canonical frame")
+    p.add_argument("--subtype", help="judge against this subtype's template only")
+    p.add_argument("--renders", type=Path, help="also judge these given frontal renders (<id>.png, _mask.png, .json), e.g. the shared renders")
+    p.add_argument("--angles", default="0,10,30,45,60,90", help="turns in degrees, comma-separated (default: 0,10,30,45,60,90)")
+    p.add_argument("--resolution", type=int, default=256, help="side of the rendered views (default: 256)")
+    p.add_argument("--limit", type=int, help="only the first N meshes")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a family setting, e.g. --set turned_margin=1")
+    p.add_argument("-o", "--out", type=Path, default=Path("frontal3d-gate"), help="output folder (default: ./frontal3d-gate)")
+    p.set_defaults(run=_cmd_evaluate_gate)
+
     p = sub.add_parser("bench", help="time each stage and measure peak memory", description="Reconstruct an image several times and print per-stage seconds and peak memory.")
     p.add_argument("image", type=Path, nargs="?", help="input photo (default: the bundled example)")
     p.add_argument("--family", default="auto")
@@ -328,6 +340,27 @@ def _cmd_evaluate_masks(args: argparse.Namespace) -> int:
                                 seed=args.seed, debug=args.verbose, settings=_parse_sets(args.set), progress=bar.update)
     print("\n".join(summary_lines(scores)))
     print(f"wrote {args.out}/masks.csv, summary.csv" + (f" and debug sheets in {args.out}/debug" if args.verbose else ""))
+    return 0
+
+
+def _cmd_evaluate_gate(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from frontal3d.eval_gate import evaluate_gate
+
+    try:
+        angles = [float(a) for a in args.angles.split(",") if a.strip()]
+    except ValueError:
+        raise ConfigError(f"--angles {args.angles!r}: expected degrees separated by commas, e.g. 0,10,30") from None
+    if not angles or args.resolution < 64:
+        raise ConfigError("evaluate-gate needs at least one angle and --resolution >= 64")
+    plugins = _plugins(args)
+    meshes = len(sorted(args.meshes.glob("*.glb"))[: args.limit])
+    with tqdm(total=meshes, unit="mesh", file=sys.stderr, disable=not sys.stderr.isatty(), leave=False) as bar:
+        _, summary = evaluate_gate(plugins, args.family, args.meshes, args.out, angles, args.resolution, args.limit,
+                                   _parse_sets(args.set), args.renders, args.subtype, progress=bar.update)
+    print("\n".join(summary.lines()))
+    print(f"wrote {args.out}/gate.csv, summary.txt")
     return 0
 
 

@@ -156,7 +156,7 @@ def reconstruct(
                 # object they are often the held object itself).
                 people_off = people_near & ~object_mask
                 view_hidden = occlusion.hidden_by(people_off, object_mask) if people_off.any() else None
-                decisions, picked_subtype, renders_by_subtype, context = _classify(plugins, rgb, probable, fam, fam_settings, subtype, hidden, view_hidden)
+                decisions, picked_subtype, renders_by_subtype, context = run_classifiers(plugins, rgb, probable, fam, fam_settings, subtype, hidden, view_hidden)
             except NotFrontalError as exc:
                 if len(candidates) == 1:
                     raise
@@ -470,10 +470,15 @@ def _probable_shape(object_mask: np.ndarray, touching: np.ndarray) -> np.ndarray
     return object_mask | (touching & (hull > 0))
 
 
-def _classify(plugins: Plugins, rgb: np.ndarray, object_mask: np.ndarray, fam: Family, settings: dict[str, Any],
-              forced_subtype: str | None, hidden: np.ndarray | None = None, view_hidden: np.ndarray | None = None):
-    """Run the classifier chain; ``hidden`` (occluded pixels) is left out of the silhouette
-    agreement, ``view_hidden`` (pixels that may or may not be the object's) out of the frontal gate's."""
+def run_classifiers(plugins: Plugins, rgb: np.ndarray, object_mask: np.ndarray, fam: Family, settings: dict[str, Any],
+                    forced_subtype: str | None = None, hidden: np.ndarray | None = None, view_hidden: np.ndarray | None = None):
+    """Run the classifier chain: (decisions, subtype, renders by subtype, context).
+
+    Raises :class:`NotFrontalError` with the rejecting classifier's reason; ``hidden``
+    (occluded pixels) is left out of the silhouette agreement, ``view_hidden`` (pixels that
+    may or may not be the object's) out of the frontal gate's. Also the gate benchmark's
+    entry point (:mod:`frontal3d.eval_gate`).
+    """
     renders_by_subtype = _subtype_renders(plugins, fam, settings, forced_subtype)
     fields = dict(image=rgb, object_mask=object_mask, family=fam, renders=renders_by_subtype, settings=settings)
     if hidden is None and view_hidden is None:

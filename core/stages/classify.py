@@ -21,6 +21,7 @@ from frontal3d.config import CORE_FAMILY_SETTINGS
 from frontal3d.family import Family
 from frontal3d.render import TemplateRenders
 from frontal3d.stages.align import Similarity, align_template, warp_labels
+from frontal3d.stages.mirror_symmetry import MirrorEvidence, mirror_evidence
 from frontal3d.stages.turned_views import TurnEvidence, turn_evidence
 
 #: Long side, in pixels, of the masks compared by the silhouette classifiers.
@@ -65,7 +66,8 @@ class ClassifierContext:
     """What every classifier may look at; silhouette agreements are computed once and shared.
 
     ``settings`` needs ``max_angle_deg`` (rotation searched) and ``frontal_threshold``;
-    ``turned_margin`` is optional (default: the core setting's, which leaves the turned test off).
+    ``turned_margin`` and ``mirror_margin`` are optional (default: the core settings', which
+    leave those tests off).
     """
 
     image: np.ndarray
@@ -75,6 +77,7 @@ class ClassifierContext:
     settings: dict[str, Any]
     _agreement: dict[str, Agreement] | None = field(default=None, repr=False)
     _turn_evidence: TurnEvidence | None = field(default=None, repr=False)
+    _mirror_evidence: MirrorEvidence | None = field(default=None, repr=False)
 
     def agreement(self) -> dict[str, Agreement]:
         """Per subtype: IoU with the aligned template and the template -> image similarity."""
@@ -93,6 +96,13 @@ class ClassifierContext:
             similarities = {subtype: found.similarity for subtype, found in self.agreement().items()}
             self._turn_evidence = turn_evidence(self.object_mask, self.renders, similarities)
         return self._turn_evidence
+
+    def mirror_evidence(self) -> MirrorEvidence:
+        """Mirror symmetry of the outline vs the best-agreeing template's, about that template's axis."""
+        if self._mirror_evidence is None:
+            best, found = max(self.agreement().items(), key=lambda item: item[1].iou)
+            self._mirror_evidence = mirror_evidence(self.object_mask, self.renders[best], found.similarity)
+        return self._mirror_evidence
 
 
 class Classifier(Protocol):
@@ -123,7 +133,7 @@ def silhouette_agreement(object_mask: np.ndarray, renders: dict[str, TemplateRen
 class FrontalGate:
     """Rejects views too far from the family's canonical view (the paper allows about ±10°).
 
-    Two silhouette tests, both training-free:
+    Three silhouette tests, all training-free:
 
     - score = best over subtypes of IoU x :func:`foreshortening` must reach the family's
       ``frontal_threshold``: IoU alone barely drops when a car turns (a front view of a
@@ -135,6 +145,12 @@ class FrontalGate:
       scale and shape variation hide from the first test; off (1.0) unless the family
       sets it, since families whose shapes vary a lot (guitars, planes) would lose
       frontal photos to it.
+    - the outline may not be less mirror-symmetric about the aligned template's axis than
+      the template by more than ``mirror_margin`` (see
+      :mod:`frontal3d.stages.mirror_symmetry`). This catches turns about that axis (a
+      plane rolled, a guitar turned about its neck) that keep the outline's size; off
+      (1.0) unless the family sets it, since a side-view car has no such axis, and
+      skipped when occluders hide part of the outline.
 
     ``frontal_threshold`` 0 switches the gate off (evaluation runs on known-frontal data).
     """
@@ -164,6 +180,15 @@ class FrontalGate:
                 reason = (f"the {family.name} looks turned about {abs(evidence.turned_degrees):.0f}° {direction} from a "
                           f"{family.canonical_view} view (a turned template fits its outline better: {evidence.turned_iou:.2f} vs "
                           f"{evidence.frontal_iou:.2f}); this family needs {view}")
+                return Decision(name=self.name, label="not frontal", confidence=best, accepted=False, reason=reason)
+        mirror_margin = float(context.settings.get("mirror_margin", CORE_FAMILY_SETTINGS["mirror_margin"]))
+        # An arm across the object makes any outline lopsided: a partly hidden one is not judged.
+        hidden = getattr(context, "hidden", None)
+        if threshold > 0 and mirror_margin < 1.0 and (hidden is None or not hidden.any()):
+            mirror = context.mirror_evidence()
+            if mirror.asymmetry > mirror_margin:
+                reason = (f"the {family.name} looks turned about its length axis: its outline is lopsided (mirror agreement "
+                          f"{mirror.object_iou:.2f} vs the template's {mirror.template_iou:.2f}); this family needs {view}")
                 return Decision(name=self.name, label="not frontal", confidence=best, accepted=False, reason=reason)
         reason = f"the {family.name} matches a {family.canonical_view} view (silhouette agreement {best:.2f} >= {threshold:.2f})"
         return Decision(name=self.name, label="frontal", confidence=best, accepted=True, reason=reason)

@@ -73,7 +73,7 @@ class TurnEvidence:
 
 def turned_hypotheses(render: TemplateRenders) -> Hypotheses:
     """The template's canonical and turned silhouettes, normalised; cached by template content."""
-    key = _content_key(render)
+    key = content_key(render)
     if key not in _CACHE:
         if len(_CACHE) >= _CACHE_LIMIT:
             _CACHE.pop(next(iter(_CACHE)))
@@ -121,7 +121,7 @@ def _soft_iou(masks: np.ndarray, outline: np.ndarray) -> np.ndarray:
     return inter / np.maximum(union, 1e-9)
 
 
-def _content_key(render: TemplateRenders) -> str:
+def content_key(render: TemplateRenders) -> str:
     """Identifies a template by its maps (renders are rebuilt per run, so identity would not do)."""
     digest = hashlib.sha1(np.packbits(render.mask).tobytes())
     digest.update(np.nan_to_num(render.front_depth[::8, ::8]).tobytes())

@@ -1,0 +1,153 @@
+"""Frontal-gate benchmark: how often does the classifier chain accept turned views?
+
+Each ground-truth mesh (canonical frame) is turned about image-up ("yaw") and
+image-right ("pitch") by each angle, both ways, and rendered in its own colours as a
+shaded frontal image (:func:`frontal3d.evaluate.render_frontal`, the shared renders' shading). The
+pipeline's classifier chain then judges the image with the true silhouette given as
+the mask, so the figures measure the gate alone, not the segmenter. Views within
+``FRONTAL_LIMIT_DEG`` should be accepted, views turned ``TURNED_FROM_DEG`` or more
+rejected; in between (10-30°) nothing is expected and nothing is scored.
+"""
+
+from __future__ import annotations
+
+import csv
+import time
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from frontal3d.errors import InputError, NotFrontalError
+from frontal3d.evaluate import _load_render, render_frontal
+from frontal3d.family import Family
+from frontal3d.photo_render import load_coloured_mesh
+from frontal3d.pipeline import run_classifiers
+from frontal3d.plugins import Plugins
+
+#: Turns (degrees) that still count as the canonical view (the paper's ±10°).
+FRONTAL_LIMIT_DEG = 10.0
+#: Turns (degrees) from which on a view must be rejected (the issue's target).
+TURNED_FROM_DEG = 30.0
+DEFAULT_ANGLES = (0.0, 10.0, 30.0, 45.0, 60.0, 90.0)
+#: Side of the rendered square views (the classifiers compare masks at 128 px).
+DEFAULT_RESOLUTION = 256
+CSV_FIELDS = ("id", "axis", "degrees", "accepted", "label", "confidence", "seconds", "reason")
+
+
+@dataclass(frozen=True)
+class GateSummary:
+    """Acceptance per turn and the balanced accuracies the issue asks for."""
+
+    accept_rate: dict[float, float]  # by |degrees|
+    count: dict[float, int]
+    balanced_0: float  # 0° (accept) vs >= 30° (reject)
+    balanced_10: float  # 0° and ±10° vs >= 30°
+    renders_accepted: tuple[int, int] | None = None  # (accepted, scored) of the given frontal renders
+
+    def lines(self) -> list[str]:
+        out = [f"{degrees:>4.0f}°: accepted {self.accept_rate[degrees]:.3f} of {self.count[degrees]}"
+               for degrees in sorted(self.accept_rate)]
+        if self.renders_accepted:
+            accepted, scored = self.renders_accepted
+            out.append(f"given frontal renders: accepted {accepted / scored:.3f} of {scored}")
+        out.append(f"balanced accuracy 0° vs >= {TURNED_FROM_DEG:.0f}°: {self.balanced_0:.3f}")
+        if not np.isnan(self.balanced_10):
+            out.append(f"balanced accuracy 0-{FRONTAL_LIMIT_DEG:.0f}° vs >= {TURNED_FROM_DEG:.0f}°: {self.balanced_10:.3f}")
+        return out
+
+
+def turned(mesh: trimesh.Trimesh, axis: str, degrees: float) -> trimesh.Trimesh:
+    """A copy of ``mesh`` turned about its bounding-box centre: ``yaw`` about +Y (image-up), ``pitch`` about +X (image-right)."""
+    direction = [0.0, 1.0, 0.0] if axis == "yaw" else [1.0, 0.0, 0.0]
+    rotation = trimesh.transformations.rotation_matrix(np.deg2rad(degrees), direction, mesh.bounds.mean(axis=0))
+    copy = mesh.copy()
+    copy.apply_transform(rotation)
+    return copy
+
+
+def views(angles: Iterable[float]) -> list[tuple[str, float]]:
+    """(axis, signed degrees) to render: the canonical view once, every other angle both ways about both axes."""
+    out = []
+    for degrees in sorted({abs(float(a)) for a in angles}):
+        if degrees == 0:
+            out.append(("yaw", 0.0))
+            continue
+        out.extend((axis, sign * degrees) for axis in ("yaw", "pitch") for sign in (1.0, -1.0))
+    return out
+
+
+def evaluate_gate(plugins: Plugins, family: str, meshes_dir: Path, out_dir: Path | None = None,
+                  angles: Iterable[float] = DEFAULT_ANGLES, resolution: int = DEFAULT_RESOLUTION,
+                  limit: int | None = None, settings: dict | None = None, renders_dir: Path | None = None,
+                  subtype: str | None = None, progress: Callable[[int], None] | None = None) -> tuple[list[dict], GateSummary]:
+    """Judge every ``*.glb`` of ``meshes_dir`` turned by each angle; writes ``gate.csv`` into ``out_dir`` when given.
+
+    With ``renders_dir`` (``<id>.png``, ``<id>_mask.png``, ``<id>.json``, as in the shared data), each
+    mesh's given frontal render is judged too (axis ``render`` in the rows, counted
+    apart from the rendered turns): the cost of a stricter gate on other renderings.
+    ``subtype`` judges against that subtype's template only (as ``reconstruct --subtype``).
+    """
+    fam = plugins.family(family)
+    paths = sorted(Path(meshes_dir).glob("*.glb"))[:limit]
+    if not paths:
+        raise InputError(f"no *.glb meshes in {meshes_dir}")
+    fam_settings = plugins.settings(fam.name, settings or {})
+    rows = []
+    for path in paths:
+        mesh = load_coloured_mesh(path)
+        for axis, degrees in views(angles):
+            image, mask, _ = render_frontal(turned(mesh, axis, degrees), resolution)
+            rows.append(_judged(plugins, fam, fam_settings, subtype, image, mask) | {"id": path.stem, "axis": axis, "degrees": degrees})
+        if renders_dir is not None:
+            image, mask, _ = _load_render(Path(renders_dir), path.stem)
+            rows.append(_judged(plugins, fam, fam_settings, subtype, image, mask) | {"id": path.stem, "axis": "render", "degrees": 0.0})
+        if progress:
+            progress(1)
+    summary = summarize(rows)
+    if out_dir is not None:
+        out_dir = Path(out_dir)
+        out_dir.mkdir(parents=True, exist_ok=True)
+        with (out_dir / "gate.csv").open("w", newline="") as handle:
+            writer = csv.DictWriter(handle, fieldnames=CSV_FIELDS)
+            writer.writeheader()
+            writer.writerows(rows)
+        (out_dir / "summary.txt").write_text("\n".join(summary.lines()) + "\n")
+    return rows, summary
+
+
+def _judged(plugins: Plugins, fam: Family, settings: dict, subtype: str | None, image: np.ndarray, mask: np.ndarray) -> dict:
+    """The classifier chain's verdict on one view, as a CSV row (without the view's name)."""
+    start = time.perf_counter()
+    try:
+        decisions = run_classifiers(plugins, image, mask, fam, settings, subtype)[0]
+        gate = next((d for d in decisions if d.name == "frontal"), decisions[0])
+        row = {"accepted": 1, "label": gate.label, "confidence": round(gate.confidence, 4), "reason": gate.reason}
+    except NotFrontalError as rejection:
+        row = {"accepted": 0, "label": "not frontal", "confidence": "", "reason": str(rejection)}
+    return row | {"seconds": round(time.perf_counter() - start, 3)}
+
+
+def summarize(rows: list[dict]) -> GateSummary:
+    """Acceptance per |turn|; balanced accuracy = mean of the frontal accept rate and the turned reject rate."""
+    given = [int(row["accepted"]) for row in rows if row.get("axis") == "render"]
+    rows = [row for row in rows if row.get("axis") != "render"]
+    by_turn: dict[float, list[int]] = {}
+    for row in rows:
+        by_turn.setdefault(abs(float(row["degrees"])), []).append(int(row["accepted"]))
+    rate = {degrees: float(np.mean(values)) for degrees, values in by_turn.items()}
+    turned_rows = [v for d, values in by_turn.items() if d >= TURNED_FROM_DEG for v in values]
+    frontal_0 = by_turn.get(0.0, [])
+    frontal_10 = [v for d, values in by_turn.items() if d <= FRONTAL_LIMIT_DEG for v in values]
+
+    def balanced(frontal: list[int]) -> float:
+        if not frontal or not turned_rows:
+            return float("nan")
+        return 0.5 * (float(np.mean(frontal)) + 1.0 - float(np.mean(turned_rows)))
+
+    has_10 = any(0 < d <= FRONTAL_LIMIT_DEG for d in by_turn)
+    return GateSummary(accept_rate=rate, count={d: len(v) for d, v in by_turn.items()},
+                       balanced_0=balanced(frontal_0), balanced_10=balanced(frontal_10) if has_10 else float("nan"),
+                       renders_accepted=(sum(given), len(given)) if given else None)

@@ -1,0 +1,129 @@
+"""Mirror-symmetry evidence for the frontal gate (issue #6): has the object turned about its axis?
+
+Seen in its canonical view, a plane's planform is mirror-symmetric about the fuselage
+and a guitar's face nearly so about the neck. Turned about that axis (image-up) by
+30° or more, the object stays about as long and its outline stays plausible, but it
+loses the symmetry: a plane's fin sticks out to one side and the engines and wing
+tips on the near and far side shift by different amounts; a guitar shows its side
+rim along one edge only. The silhouette test cannot see this, because a narrower
+object of the same kind explains the outline just as well.
+
+The object's best mirror line is searched near the axis of the aligned template
+(the similarity found by the silhouette alignment carries the template's axis onto
+the image), and its mirror agreement is compared with the template's own: a template
+that is itself asymmetric (an electric guitar's cutaway) sets a lower bar. Families
+switch it on with ``mirror_margin``; guitars do not, since real guitar bodies (basses,
+single cutaways) are less symmetric than the templates even when seen straight on.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from frontal3d.render import TemplateRenders
+from frontal3d.stages.align import Similarity
+from frontal3d.stages.turned_views import content_key
+
+#: Side of the square grid on which mirror agreement is measured.
+GRID = 128
+#: Share of the grid the object's longest side spans (room for turned lines).
+FILL = 0.7
+#: Tilts (degrees) of the template's own mirror line searched about its vertical axis.
+TEMPLATE_TILTS = tuple(range(-4, 5, 2))
+#: Tilts (degrees) of the object's mirror line searched about the aligned template's axis.
+OBJECT_TILTS = tuple(range(-10, 11, 2))
+#: How far (share of the grid) the mirror line may sit from the silhouette's centroid.
+OFFSET_LIMIT = 0.15
+#: Bends of the object's mirror line tried: sideways offset of its ends (t = ±1) against its
+#: middle, as a share of the object's length. A slightly bent photo of a straight object, or
+#: a bent neck, must not read as a turn; the template's line stays straight.
+OBJECT_BENDS = (-0.08, -0.04, 0.0, 0.04, 0.08)
+_TEMPLATE_CACHE: dict[str, tuple[float, float]] = {}
+_CACHE_LIMIT = 32
+
+
+@dataclass(frozen=True)
+class MirrorEvidence:
+    """Best mirror IoU of the object's silhouette and of its aligned template's."""
+
+    object_iou: float
+    template_iou: float
+
+    @property
+    def asymmetry(self) -> float:
+        """How much less mirror-symmetric the object is than its template (positive: less)."""
+        return self.template_iou - self.object_iou
+
+
+def mirror_evidence(object_mask: np.ndarray, render: TemplateRenders, similarity: Similarity) -> MirrorEvidence:
+    """Compare the object's mirror symmetry with the template's, about the template's axis as aligned."""
+    template_iou, template_tilt = template_mirror(render)
+    # The similarity turns the template clockwise on screen by its angle; tilts here count
+    # counter-clockwise, so the template's line lands at its own tilt minus that angle.
+    axis = np.deg2rad(template_tilt) - similarity.angle
+    object_iou, _ = best_mirror(object_mask, axis, OBJECT_TILTS, OBJECT_BENDS)
+    return MirrorEvidence(object_iou=object_iou, template_iou=template_iou)
+
+
+def template_mirror(render: TemplateRenders) -> tuple[float, float]:
+    """(best mirror IoU, tilt in degrees) of the template about its vertical axis; cached by content."""
+    key = content_key(render)
+    if key not in _TEMPLATE_CACHE:
+        if len(_TEMPLATE_CACHE) >= _CACHE_LIMIT:
+            _TEMPLATE_CACHE.pop(next(iter(_TEMPLATE_CACHE)))
+        _TEMPLATE_CACHE[key] = best_mirror(render.mask, 0.0, TEMPLATE_TILTS)
+    return _TEMPLATE_CACHE[key]
+
+
+def best_mirror(mask: np.ndarray, axis: float, tilts_deg: tuple[int, ...], bends: tuple[float, ...] = (0.0,)) -> tuple[float, float]:
+    """Best IoU of ``mask`` with its mirror image over lines at ``axis`` (radians from image-up,
+    counter-clockwise on screen) plus each tilt, each bent like a parabola by each of
+    ``bends`` (see :data:`OBJECT_BENDS`), and the winning tilt in degrees (relative to image-up).
+
+    For each direction the mask is turned so the line is vertical; the overlap of every
+    row with its own reflection about every column is one autocorrelation, done by FFT,
+    and a bent line reads each row's overlap at its own column.
+    """
+    small = _cropped(mask)
+    ys, xs = np.nonzero(small > 0.5)
+    centre = (float(xs.mean()), float(ys.mean()))
+    scale = GRID * FILL / max(small.shape)
+    # Mirror columns c near the centre, as indices 2c into the autocorrelation.
+    doubled = np.arange(round(2 * (GRID / 2 - 0.5 - OFFSET_LIMIT * GRID)), round(2 * (GRID / 2 - 0.5 + OFFSET_LIMIT * GRID)) + 1)
+    rows = np.arange(GRID)
+    best_iou, best_tilt = -1.0, 0.0
+    for tilt in tilts_deg:
+        direction = axis + np.deg2rad(tilt)
+        matrix = cv2.getRotationMatrix2D(centre, -np.rad2deg(direction), scale)
+        matrix[:, 2] += (GRID / 2 - centre[0], GRID / 2 - centre[1])
+        upright = cv2.warpAffine(small, matrix, (GRID, GRID), flags=cv2.INTER_LINEAR, borderValue=0.0)
+        spectrum = np.fft.rfft(upright, n=2 * GRID, axis=1)
+        overlap = np.fft.irfft(spectrum * spectrum, n=2 * GRID, axis=1)  # row y, index 2c
+        occupied = np.flatnonzero(upright.sum(axis=1) > 0)
+        length = max(float(occupied[-1] - occupied[0]), 1.0)
+        along = (rows - (occupied[0] + occupied[-1]) / 2.0) / (length / 2.0)
+        area = upright.sum()
+        for bend in bends:
+            shift = np.round(2 * bend * length * (along**2 - 1.0 / 3.0)).astype(int)
+            index = np.clip(doubled[:, None] + shift[None, :], 0, 2 * GRID - 1)
+            inter = overlap[rows[None, :], index].sum(axis=1)
+            iou = float((inter / np.maximum(2 * area - inter, 1e-9)).max())
+            if iou > best_iou:
+                best_iou, best_tilt = iou, float(np.rad2deg(direction))
+    return best_iou, best_tilt
+
+
+def _cropped(mask: np.ndarray) -> np.ndarray:
+    """The mask's box with a margin, as float coverage, shrunk (area average) to at most 2 x GRID."""
+    ys, xs = np.nonzero(mask)
+    height, width = ys.max() - ys.min() + 1, xs.max() - xs.min() + 1
+    margin = int(0.3 * max(height, width)) + 2
+    box = np.zeros((height + 2 * margin, width + 2 * margin), np.float32)
+    box[margin:-margin, margin:-margin] = mask[ys.min() : ys.max() + 1, xs.min() : xs.max() + 1]
+    shrink = min(1.0, 2 * GRID / max(box.shape))
+    if shrink < 1.0:
+        box = cv2.resize(box, None, fx=shrink, fy=shrink, interpolation=cv2.INTER_AREA)
+    return box

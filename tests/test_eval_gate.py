@@ -1,0 +1,77 @@
+"""Gate benchmark: a generated car turned away from its side view is scored as it should be."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import cv2
+import pytest
+import trimesh
+
+from frontal3d.cli import main
+from frontal3d.eval_gate import evaluate_gate, summarize, views
+from frontal3d.evaluate import render_frontal
+from frontal3d.plugins import Plugins
+
+
+def _box_car() -> trimesh.Trimesh:
+    """A car in the canonical frame (front to +X, up +Y, width along Z): body, cabin set back, wheels."""
+    body = trimesh.creation.box(extents=[4.2, 0.75, 1.8])
+    body.apply_translation([0.0, 0.7, 0.0])
+    cabin = trimesh.creation.box(extents=[2.1, 0.6, 1.5])
+    cabin.apply_translation([-0.3, 1.35, 0.0])
+    parts = [body, cabin]
+    for x in (-1.35, 1.35):
+        for z in (-0.75, 0.75):
+            wheel = trimesh.creation.cylinder(radius=0.36, height=0.25, sections=24)
+            wheel.apply_translation([x, 0.36, z])
+            parts.append(wheel)
+    car = trimesh.util.concatenate(parts)
+    car.apply_scale(1.0 / max(car.extents))
+    return car
+
+
+@pytest.fixture(scope="module")
+def meshes(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("meshes")
+    _box_car().export(folder / "boxcar.glb")
+    return folder
+
+
+def test_views_cover_both_axes_and_signs():
+    assert views([0, 30]) == [("yaw", 0.0), ("yaw", 30.0), ("yaw", -30.0), ("pitch", 30.0), ("pitch", -30.0)]
+
+
+def test_side_view_accepted_and_end_on_views_rejected_with_reasons(meshes, tmp_path):
+    renders = tmp_path / "renders"
+    renders.mkdir()
+    image, mask, camera = render_frontal(_box_car(), 200)
+    (renders / "boxcar.json").write_text(json.dumps(camera))
+    cv2.imwrite(str(renders / "boxcar.png"), image[..., ::-1])
+    cv2.imwrite(str(renders / "boxcar_mask.png"), mask.astype("uint8") * 255)
+    rows, summary = evaluate_gate(Plugins(), "car", meshes, tmp_path, angles=(0, 90), resolution=160,
+                                  renders_dir=renders, subtype="sedan")
+    by_view = {(r["axis"], r["degrees"]): r for r in rows}
+    assert by_view[("yaw", 0.0)]["accepted"] == 1
+    assert all(by_view[(axis, sign * 90.0)]["accepted"] == 0 for axis in ("yaw", "pitch") for sign in (1, -1))
+    assert all("side view" in by_view[(axis, 90.0)]["reason"] for axis in ("yaw", "pitch"))
+    assert summary.balanced_0 == 1.0
+    assert summary.renders_accepted == (1, 1)
+    with (tmp_path / "gate.csv").open() as handle:
+        assert len(list(csv.DictReader(handle))) == 6
+
+
+def test_summary_balances_frontal_acceptance_against_turned_rejection():
+    rows = [{"degrees": 0.0, "accepted": 1}, {"degrees": 10.0, "accepted": 0},
+            {"degrees": 30.0, "accepted": 1}, {"degrees": -45.0, "accepted": 0},
+            {"degrees": 45.0, "accepted": 0}, {"degrees": 20.0, "accepted": 1}]
+    summary = summarize(rows)
+    assert summary.accept_rate[45.0] == 0.0 and summary.count[45.0] == 2
+    assert summary.balanced_0 == pytest.approx(0.5 * (1.0 + 2 / 3))
+    assert summary.balanced_10 == pytest.approx(0.5 * (0.5 + 2 / 3))
+
+
+def test_cli_rejects_bad_angles(meshes, capsys):
+    assert main(["evaluate-gate", "--family", "car", "--meshes", str(meshes), "--angles", "0,abc"]) == 2
+    assert "--angles" in capsys.readouterr().err
