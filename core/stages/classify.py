@@ -182,9 +182,10 @@ class FrontalGate:
                           f"{evidence.frontal_iou:.2f}); this family needs {view}")
                 return Decision(name=self.name, label="not frontal", confidence=best, accepted=False, reason=reason)
         mirror_margin = float(context.settings.get("mirror_margin", CORE_FAMILY_SETTINGS["mirror_margin"]))
-        # An arm across the object makes any outline lopsided: a partly hidden one is not judged.
-        hidden = getattr(context, "hidden", None)
-        if threshold > 0 and mirror_margin < 1.0 and (hidden is None or not hidden.any()):
+        # An arm across the object, or a person beside it whose pixels may be the object's,
+        # makes any outline lopsided: a partly hidden one is not judged.
+        partly_hidden = any(mask is not None and mask.any() for mask in (getattr(context, "hidden", None), getattr(context, "view_hidden", None)))
+        if threshold > 0 and mirror_margin < 1.0 and not partly_hidden:
             mirror = context.mirror_evidence()
             if mirror.asymmetry > mirror_margin:
                 reason = (f"the {family.name} looks turned about its length axis: its outline is lopsided (mirror agreement "
