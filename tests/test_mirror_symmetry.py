@@ -13,6 +13,7 @@ from frontal3d.plugins import Plugins
 from frontal3d.render import TemplateRenders, render_template
 from frontal3d.stages.classify import ClassifierContext, FrontalGate
 from frontal3d.stages.mirror_symmetry import OBJECT_BENDS, best_mirror
+from frontal3d.stages.occlusion import VisibleAgreementContext
 
 FAMILY = Family(name="airplane", subtypes=("airliner",), canonical_view="top", regions={"airliner": ("fuselage",)},
                 real_size={"airliner": 40.0}, view_hint="a top view of the plane")
@@ -80,3 +81,18 @@ def test_a_bent_photo_of_a_symmetric_shape_still_counts_as_symmetric():
     assert upright > 0.93
     assert bent_straight_line < 0.85
     assert bent_curved_line > 0.9
+
+
+def test_mirror_test_does_not_judge_an_outline_a_person_beside_it_may_hide(plane, template):
+    """A person standing beside the plane may hide part of its outline (``view_hidden``):
+    the lopsided outline is then no evidence of a turn, as with an arm across it."""
+    margin = Plugins().settings("airplane")["mirror_margin"]
+    mask = render_frontal(turned(plane, "yaw", 30.0), 200)[1]
+    assert not _gate(template, mask, margin).accepted
+    beside = np.zeros_like(mask)
+    columns = np.flatnonzero(mask.any(axis=0))
+    beside[:, columns[-1] + 1 : columns[-1] + 6] = True
+    settings = {"max_angle_deg": 30.0, "frontal_threshold": 0.2, "mirror_margin": margin}
+    context = VisibleAgreementContext(image=np.zeros(mask.shape + (3,), np.uint8), object_mask=mask, family=FAMILY,
+                                      renders={"airliner": template}, settings=settings, view_hidden=beside)
+    assert FrontalGate().classify(context).accepted
