@@ -13,21 +13,12 @@ from frontal3d.cli import main
 from frontal3d.eval_gate import evaluate_gate, summarize, views
 from frontal3d.evaluate import render_frontal
 from frontal3d.plugins import Plugins
+from shapes import box_car
 
 
 def _box_car() -> trimesh.Trimesh:
-    """A car in the canonical frame (front to +X, up +Y, width along Z): body, cabin set back, wheels."""
-    body = trimesh.creation.box(extents=[4.2, 0.75, 1.8])
-    body.apply_translation([0.0, 0.7, 0.0])
-    cabin = trimesh.creation.box(extents=[2.1, 0.6, 1.5])
-    cabin.apply_translation([-0.3, 1.35, 0.0])
-    parts = [body, cabin]
-    for x in (-1.35, 1.35):
-        for z in (-0.75, 0.75):
-            wheel = trimesh.creation.cylinder(radius=0.36, height=0.25, sections=24)
-            wheel.apply_translation([x, 0.36, z])
-            parts.append(wheel)
-    car = trimesh.util.concatenate(parts)
+    """The shared box car at unit size, as the ground-truth meshes are."""
+    car = box_car()
     car.apply_scale(1.0 / max(car.extents))
     return car
 

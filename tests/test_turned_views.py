@@ -12,24 +12,10 @@ from frontal3d.render import TemplateRenders, render_template
 from frontal3d.stages.align import Similarity
 from frontal3d.stages.classify import ClassifierContext, FrontalGate
 from frontal3d.stages.turned_views import turn_evidence, turned_hypotheses
+from shapes import box_car
 
 FAMILY = Family(name="car", subtypes=("sedan",), canonical_view="side", regions={"sedan": ("body",)},
                 real_size={"sedan": 4.2}, view_hint="a side view of the car")
-
-
-def _car_like_mesh() -> trimesh.Trimesh:
-    """A box car: long body, a cabin set back, four wheels; front and back ends differ."""
-    body = trimesh.creation.box(extents=[4.2, 0.7, 1.8])
-    body.apply_translation([0.0, 0.65, 0.0])
-    cabin = trimesh.creation.box(extents=[2.0, 0.6, 1.5])
-    cabin.apply_translation([-0.3, 1.3, 0.0])
-    parts = [body, cabin]
-    for x in (-1.4, 1.4):
-        for z in (-0.75, 0.75):
-            wheel = trimesh.creation.cylinder(radius=0.35, height=0.25, sections=24)
-            wheel.apply_translation([x, 0.35, z])
-            parts.append(wheel)
-    return trimesh.util.concatenate(parts)
 
 
 def _render(mesh: trimesh.Trimesh, yaw_deg: float = 0.0, pitch_deg: float = 0.0) -> TemplateRenders:
@@ -49,7 +35,7 @@ def _photo(mask: np.ndarray, scale: float, angle_deg: float) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def car_like() -> trimesh.Trimesh:
-    return _car_like_mesh()
+    return box_car()
 
 
 @pytest.fixture(scope="module")
