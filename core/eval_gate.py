@@ -21,7 +21,7 @@ import numpy as np
 import trimesh
 
 from frontal3d.errors import InputError, NotFrontalError
-from frontal3d.evaluate import _load_render, render_frontal
+from frontal3d.evaluate import load_render, render_frontal
 from frontal3d.family import Family
 from frontal3d.photo_render import load_coloured_mesh
 from frontal3d.pipeline import run_classifiers
@@ -102,7 +102,7 @@ def evaluate_gate(plugins: Plugins, family: str, meshes_dir: Path, out_dir: Path
             image, mask, _ = render_frontal(turned(mesh, axis, degrees), resolution)
             rows.append(_judged(plugins, fam, fam_settings, subtype, image, mask) | {"id": path.stem, "axis": axis, "degrees": degrees})
         if renders_dir is not None:
-            image, mask, _ = _load_render(Path(renders_dir), path.stem)
+            image, mask, _ = load_render(Path(renders_dir), path.stem)
             rows.append(_judged(plugins, fam, fam_settings, subtype, image, mask) | {"id": path.stem, "axis": "render", "degrees": 0.0})
         if progress:
             progress(1)

@@ -33,7 +33,7 @@ import cv2
 import numpy as np
 
 from frontal3d.errors import ConfigError, Frontal3DError, InputError, NotFrontalError
-from frontal3d.evaluate import METRIC_KEYS, _load_mesh, _load_render, _write_csv, evaluate_pair
+from frontal3d.evaluate import METRIC_KEYS, load_mesh, load_render, write_csv, evaluate_pair
 
 #: Share of the object the occluder in front hides.
 OCCLUDED_SHARE = (0.10, 0.30)
@@ -283,16 +283,16 @@ def run_occlusion_evaluation(family: str, meshes_dir: Path, renders_dir: Path, k
     rows: list[dict] = []
     bar = _bar(len(paths) * per_object, progress, f"occluded {family} ({kind})")
     for number, path in enumerate(paths):
-        gt = _load_mesh(path)
-        image, mask, _camera = _load_render(Path(renders_dir), path.stem)
+        gt = load_mesh(path)
+        image, mask, _camera = load_render(Path(renders_dir), path.stem)
         clean = _scores(_reconstruct(plugins, family, image, mask, None, settings), gt)
         for index, composite in enumerate(_composites(kind, image, mask, number * per_object, per_object, rng, cutouts)):
             rows.append(_composite_row(plugins, family, path.stem, index, composite, image, mask, gt, clean, kind, settings, out_dir))
             bar.update(1)
     bar.close()
-    _write_csv(out_dir / "composites.csv", COMPOSITE_FIELDS, rows)
+    write_csv(out_dir / "composites.csv", COMPOSITE_FIELDS, rows)
     summary = summarize(rows)
-    _write_csv(out_dir / "summary.csv", tuple(summary[0]), summary)
+    write_csv(out_dir / "summary.csv", tuple(summary[0]), summary)
     return rows
 
 

@@ -258,7 +258,8 @@ def render_frontal(mesh: trimesh.Trimesh, resolution: int = RENDER_RESOLUTION) -
     return np.ascontiguousarray(rgba[..., :3]), rgba[..., 3] > 0, camera
 
 
-def _load_render(renders_dir: Path, mesh_id: str) -> tuple[np.ndarray, np.ndarray, dict]:
+def load_render(renders_dir: Path, mesh_id: str) -> tuple[np.ndarray, np.ndarray, dict]:
+    """A given frontal render: its image, mask and camera (the shared data's layout)."""
     image = cv2.imread(str(renders_dir / f"{mesh_id}.png"), cv2.IMREAD_COLOR)
     mask = cv2.imread(str(renders_dir / f"{mesh_id}_mask.png"), cv2.IMREAD_GRAYSCALE)
     camera_path = renders_dir / f"{mesh_id}.json"
@@ -267,7 +268,8 @@ def _load_render(renders_dir: Path, mesh_id: str) -> tuple[np.ndarray, np.ndarra
     return image[..., ::-1].copy(), mask > 127, json.loads(camera_path.read_text())
 
 
-def _load_mesh(path: Path) -> trimesh.Trimesh:
+def load_mesh(path: Path) -> trimesh.Trimesh:
+    """A ground-truth mesh as one triangle soup; an empty one is an input error."""
     mesh = trimesh.load(path, force="mesh")
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise InputError(f"ground-truth mesh {path} has no triangles")
@@ -304,8 +306,8 @@ def run_evaluation(
         row = {"id": path.stem, "family": family, "subtype": "", "seconds": float("nan"), "error": ""}
         row.update({key: float("nan") for key in METRIC_KEYS + ICP_METRIC_KEYS})
         try:
-            gt = _load_mesh(path)
-            image, mask, camera = _load_render(Path(renders_dir), path.stem) if renders_dir else render_frontal(gt)
+            gt = load_mesh(path)
+            image, mask, camera = load_render(Path(renders_dir), path.stem) if renders_dir else render_frontal(gt)
             start = time.perf_counter()
             prediction = reconstruct(image, mask, camera)
             row["seconds"] = time.perf_counter() - start
@@ -316,7 +318,7 @@ def run_evaluation(
             if progress and not isinstance(error, InputError):
                 traceback.print_exc()
         rows.append(row)
-    _write_csv(out_dir / "metrics.csv", CSV_FIELDS, rows)
+    write_csv(out_dir / "metrics.csv", CSV_FIELDS, rows)
     _write_summary(out_dir / "summary.csv", rows)
     _write_boxplots(out_dir / "boxplots.png", rows)
     return rows
@@ -330,7 +332,8 @@ def _progress(paths: list[Path], enabled: bool, family: str):
     return tqdm(paths, desc=f"evaluate {family}", unit="mesh")
 
 
-def _write_csv(path: Path, fields: tuple[str, ...], rows: list[dict]) -> None:
+def write_csv(path: Path, fields: tuple[str, ...], rows: list[dict]) -> None:
+    """Rows as CSV with these columns (other keys are left out)."""
     with path.open("w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=fields, extrasaction="ignore")
         writer.writeheader()
@@ -360,7 +363,7 @@ def _write_summary(path: Path, rows: list[dict]) -> None:
             line[f"{key}_mean"] = statistics.fmean(values) if values else float("nan")
             line[f"{key}_median"] = statistics.median(values) if values else float("nan")
         summary.append(line)
-    _write_csv(path, tuple(fields), summary)
+    write_csv(path, tuple(fields), summary)
 
 
 def _write_boxplots(path: Path, rows: list[dict]) -> None:
