@@ -128,9 +128,11 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-v", "--verbose", action="store_true", help="also write a debug sheet per image to OUT/debug (input | mask | truth)")
     p.set_defaults(run=_cmd_evaluate_masks)
 
-    p = sub.add_parser("evaluate-gate", help="measure the frontal gate on ground-truth meshes turned away from the canonical view", description="Render each ground-truth mesh (canonical frame) turned about image-up and image-right by each angle, both ways, as a shaded frontal image, run the classifier chain on it with the true mask given, and print the acceptance per angle and the balanced accuracy (0 deg, and 0-10 deg, accepted vs >= 30 deg rejected). Writes OUT/gate.csv (one row per mesh and view, with the gate's reason) and OUT/summary.txt.")
+    p = sub.add_parser("evaluate-gate", help="measure the frontal gate on ground-truth meshes turned away from the canonical view", description="Render each ground-truth mesh (canonical frame) turned about image-up and image-right by each angle, both ways, as a shaded frontal image, run the classifier chain on it with the true mask given, and print the acceptance per angle and the balanced accuracy (0 deg, and 0-10 deg, accepted vs >= 30 deg rejected). With --synth, judges the samples of a `frontal3d synth` folder by their frontal/turned labels instead (the held-out synthetic figures margins are chosen on). Writes OUT/gate.csv (one row per view or sample, with the gate's reason) and OUT/summary.txt.")
     p.add_argument("--family", required=True)
-    p.add_argument("--meshes", type=Path, required=True, help="folder of ground-truth *.glb in the family's canonical frame")
+    source = p.add_mutually_exclusive_group(required=True)
+    source.add_argument("--meshes", type=Path, help="folder of ground-truth *.glb in the family's canonical frame")
+    source.add_argument("--synth", type=Path, help="a `frontal3d synth` folder instead: judge its samples by their frontal/turned labels")
     p.add_argument("--subtype", help="judge against this subtype's template only")
     p.add_argument("--renders", type=Path, help="also judge these given frontal renders (<id>.png, _mask.png, .json), e.g. the shared renders")
     p.add_argument("--angles", default="0,10,30,45,60,90", help="turns in degrees, comma-separated (default: 0,10,30,45,60,90)")
@@ -346,7 +348,7 @@ def _cmd_evaluate_masks(args: argparse.Namespace) -> int:
 def _cmd_evaluate_gate(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from frontal3d.eval_gate import evaluate_gate
+    from frontal3d.eval_gate import evaluate_gate, evaluate_gate_on_synth
 
     try:
         angles = [float(a) for a in args.angles.split(",") if a.strip()]
@@ -355,6 +357,13 @@ def _cmd_evaluate_gate(args: argparse.Namespace) -> int:
     if not angles or args.resolution < 64:
         raise ConfigError("evaluate-gate needs at least one angle and --resolution >= 64")
     plugins = _plugins(args)
+    if args.synth is not None:
+        with tqdm(unit="sample", file=sys.stderr, disable=not sys.stderr.isatty(), leave=False) as bar:
+            _, summary = evaluate_gate_on_synth(plugins, args.family, args.synth, args.out, args.limit, _parse_sets(args.set),
+                                                args.subtype, progress=bar.update)
+        print("\n".join(summary.lines()))
+        print(f"wrote {args.out}/gate.csv, summary.txt")
+        return 0
     meshes = len(sorted(args.meshes.glob("*.glb"))[: args.limit])
     with tqdm(total=meshes, unit="mesh", file=sys.stderr, disable=not sys.stderr.isatty(), leave=False) as bar:
         _, summary = evaluate_gate(plugins, args.family, args.meshes, args.out, angles, args.resolution, args.limit,

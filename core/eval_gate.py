@@ -7,11 +7,13 @@ pipeline's classifier chain then judges the image with the true silhouette given
 the mask, so the figures measure the gate alone, not the segmenter. Views within
 ``FRONTAL_LIMIT_DEG`` should be accepted, views turned ``TURNED_FROM_DEG`` or more
 rejected; in between (10-30°) nothing is expected and nothing is scored.
+
+:func:`evaluate_gate_on_synth` judges ``frontal3d synth`` samples the same way, by their
+frontal / turned labels: the held-out synthetic figures the gate's margins are chosen on.
 """
 
 from __future__ import annotations
 
-import csv
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
@@ -21,11 +23,12 @@ import numpy as np
 import trimesh
 
 from frontal3d.errors import InputError, NotFrontalError
-from frontal3d.evaluate import load_render, render_frontal
+from frontal3d.evaluate import load_render, render_frontal, write_csv
 from frontal3d.family import Family
 from frontal3d.photo_render import load_coloured_mesh
 from frontal3d.pipeline import run_classifiers
 from frontal3d.plugins import Plugins
+from frontal3d.synth import read_family_labels, read_sample
 
 #: Turns (degrees) that still count as the canonical view (the paper's ±10°).
 FRONTAL_LIMIT_DEG = 10.0
@@ -35,6 +38,8 @@ DEFAULT_ANGLES = (0.0, 10.0, 30.0, 45.0, 60.0, 90.0)
 #: Side of the rendered square views (the classifiers compare masks at 128 px).
 DEFAULT_RESOLUTION = 256
 CSV_FIELDS = ("id", "axis", "degrees", "accepted", "label", "confidence", "seconds", "reason")
+#: Synthetic samples add their label (1 = frontal) and judge turns by the larger of yaw and pitch.
+SYNTH_CSV_FIELDS = CSV_FIELDS + ("frontal",)
 
 
 @dataclass(frozen=True)
@@ -108,14 +113,62 @@ def evaluate_gate(plugins: Plugins, family: str, meshes_dir: Path, out_dir: Path
             progress(1)
     summary = summarize(rows)
     if out_dir is not None:
-        out_dir = Path(out_dir)
-        out_dir.mkdir(parents=True, exist_ok=True)
-        with (out_dir / "gate.csv").open("w", newline="") as handle:
-            writer = csv.DictWriter(handle, fieldnames=CSV_FIELDS)
-            writer.writeheader()
-            writer.writerows(rows)
-        (out_dir / "summary.txt").write_text("\n".join(summary.lines()) + "\n")
+        _write(Path(out_dir), rows, CSV_FIELDS, summary.lines())
     return rows, summary
+
+
+@dataclass(frozen=True)
+class SynthGateSummary:
+    """Accept rate of the frontal-labelled samples, reject rate of the turned ones, their mean."""
+
+    frontal_accepted: float
+    frontal_count: int
+    turned_rejected: float
+    turned_count: int
+
+    @property
+    def balanced(self) -> float:
+        return 0.5 * (self.frontal_accepted + self.turned_rejected)
+
+    def lines(self) -> list[str]:
+        return [f"frontal samples (within ±{FRONTAL_LIMIT_DEG:.0f}°): accepted {self.frontal_accepted:.3f} of {self.frontal_count}",
+                f"turned samples: rejected {self.turned_rejected:.3f} of {self.turned_count}",
+                f"balanced accuracy: {self.balanced:.3f}"]
+
+
+def evaluate_gate_on_synth(plugins: Plugins, family: str, data_dir: Path, out_dir: Path | None = None,
+                           limit: int | None = None, settings: dict | None = None, subtype: str | None = None,
+                           progress: Callable[[int], None] | None = None) -> tuple[list[dict], SynthGateSummary]:
+    """Judge the first ``limit`` samples of a ``frontal3d synth`` folder with their true masks;
+    writes ``gate.csv`` and ``summary.txt`` into ``out_dir`` when given."""
+    data_dir = Path(data_dir)
+    labels, families = read_family_labels(data_dir)
+    if families[0] != family:
+        raise InputError(f"{data_dir} holds {families[0]} samples, not {family}")
+    fam = plugins.family(family)
+    fam_settings = plugins.settings(fam.name, settings or {})
+    rows = []
+    for label in labels[:limit]:
+        image, mask = read_sample(data_dir, label["file"])
+        turn = max(abs(float(label["yaw"])), abs(float(label["pitch"])))
+        rows.append(_judged(plugins, fam, fam_settings, subtype, image, mask)
+                    | {"id": label["file"], "axis": "synth", "degrees": turn, "frontal": int(label["frontal"])})
+        if progress:
+            progress(1)
+    frontal = [int(row["accepted"]) for row in rows if row["frontal"]]
+    turned = [1 - int(row["accepted"]) for row in rows if not row["frontal"]]
+    if not frontal or not turned:
+        raise InputError(f"{data_dir}: the gate needs both frontal and turned samples (found {len(frontal)} and {len(turned)})")
+    summary = SynthGateSummary(float(np.mean(frontal)), len(frontal), float(np.mean(turned)), len(turned))
+    if out_dir is not None:
+        _write(Path(out_dir), rows, SYNTH_CSV_FIELDS, summary.lines())
+    return rows, summary
+
+
+def _write(out_dir: Path, rows: list[dict], fields: tuple[str, ...], lines: list[str]) -> None:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    write_csv(out_dir / "gate.csv", fields, rows)
+    (out_dir / "summary.txt").write_text("\n".join(lines) + "\n")
 
 
 def _judged(plugins: Plugins, fam: Family, settings: dict, subtype: str | None, image: np.ndarray, mask: np.ndarray) -> dict:

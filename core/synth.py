@@ -20,6 +20,7 @@ import cv2
 import numpy as np
 import open3d as o3d
 
+from frontal3d.errors import InputError
 from frontal3d.family import Family, Template
 
 #: Largest |yaw| and |pitch| of a frontal (positive) sample, in degrees: the paper's ±10°.
@@ -243,3 +244,23 @@ def read_labels(data_dir: Path) -> list[dict[str, str]]:
     """The rows of ``data_dir/labels.csv`` as dicts (see :data:`LABEL_COLUMNS`)."""
     with (data_dir / "labels.csv").open(newline="") as handle:
         return list(csv.DictReader(handle))
+
+
+def read_family_labels(data_dir: Path) -> tuple[list[dict[str, str]], list[str]]:
+    """labels.csv's rows and its one family name (a data set of several families is refused)."""
+    if not (data_dir / "labels.csv").is_file():
+        raise InputError(f"{data_dir}: no labels.csv (make the data with `frontal3d synth`)")
+    rows = read_labels(data_dir)
+    families = sorted({row["family"] for row in rows})
+    if len(families) != 1:
+        raise InputError(f"{data_dir}/labels.csv: expected samples of one family, found {', '.join(families) or 'none'}")
+    return rows, families
+
+
+def read_sample(data_dir: Path, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """One sample's RGB image and object mask."""
+    image = cv2.imread(str(data_dir / "images" / name), cv2.IMREAD_COLOR)
+    mask = cv2.imread(str(data_dir / "masks" / name), cv2.IMREAD_GRAYSCALE)
+    if image is None or mask is None:
+        raise InputError(f"{data_dir}: cannot read images/{name} or masks/{name}")
+    return cv2.cvtColor(image, cv2.COLOR_BGR2RGB), mask > 0

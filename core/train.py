@@ -25,7 +25,7 @@ from frontal3d.errors import ConfigError, InputError
 from frontal3d.family import Family
 from frontal3d.learned import ARCHITECTURES, CLASSIFIER_TASKS, DENSE_TASKS, FORMAT_VERSION, GATE_CLASSES, INPUT_SIZE, WIDTHS, crop_square, cut_square, object_crop, to_tensor
 from frontal3d.learned_dense import DENSE_INPUT_SIZE, DENSE_WIDTHS, SEGMENTER_CLASSES, dense_probabilities, family_region_names, letterbox, regions_input
-from frontal3d.synth import read_labels
+from frontal3d.synth import read_family_labels, read_sample
 
 #: Share of the samples held out for the accuracy report.
 HOLD_OUT = 0.15
@@ -151,7 +151,7 @@ def load_dataset(data_dir: Path, task: str, size: int = INPUT_SIZE) -> Dataset:
     """
     if task not in CLASSIFIER_TASKS:
         raise ConfigError(f"unknown task {task!r} (tasks: {', '.join(CLASSIFIER_TASKS)})")
-    rows, families = _read_rows(data_dir)
+    rows, families = read_family_labels(data_dir)
     if task == "subtype":
         rows = [row for row in rows if row["frontal"] == "1"]
         classes = sorted({row["subtype"] for row in rows})
@@ -165,17 +165,6 @@ def load_dataset(data_dir: Path, task: str, size: int = INPUT_SIZE) -> Dataset:
     return Dataset(family=families[0], classes=classes, crops=crops, targets=np.asarray(targets, np.int64))
 
 
-def _read_rows(data_dir: Path) -> tuple[list[dict[str, str]], list[str]]:
-    """labels.csv's rows and its one family name (a data set of several families is refused)."""
-    if not (data_dir / "labels.csv").is_file():
-        raise InputError(f"{data_dir}: no labels.csv (make the data with `frontal3d synth`)")
-    rows = read_labels(data_dir)
-    families = sorted({row["family"] for row in rows})
-    if len(families) != 1:
-        raise InputError(f"{data_dir}/labels.csv: expected samples of one family, found {', '.join(families) or 'none'}")
-    return rows, families
-
-
 def load_dense_dataset(data_dir: Path, task: str, family_of: Callable[[str], Family], size: int = DENSE_INPUT_SIZE) -> Dataset:
     """Read a ``frontal3d synth`` folder for a dense task, every sample (frontal or turned).
 
@@ -185,7 +174,7 @@ def load_dense_dataset(data_dir: Path, task: str, family_of: Callable[[str], Fam
     """
     if task not in DENSE_TASKS:
         raise ConfigError(f"unknown task {task!r} (tasks: {', '.join(DENSE_TASKS)})")
-    rows, families = _read_rows(data_dir)
+    rows, families = read_family_labels(data_dir)
     family = family_of(families[0])
     classes = list(SEGMENTER_CLASSES) if task == "segmenter" else family_region_names(family)
     # per subtype: its region index -> index in the family's region set (background, -1, stays -1)
@@ -194,7 +183,7 @@ def load_dense_dataset(data_dir: Path, task: str, family_of: Callable[[str], Fam
     }
     inputs, targets = [], []
     for row in rows:
-        image, mask = _read_sample(data_dir, row["file"])
+        image, mask = read_sample(data_dir, row["file"])
         if task == "segmenter":
             inputs.append(letterbox(image, size)[0])
             targets.append((letterbox(mask.astype(np.uint8) * 255, size)[0] > 127).astype(np.int64))
@@ -207,16 +196,8 @@ def load_dense_dataset(data_dir: Path, task: str, family_of: Callable[[str], Fam
     return Dataset(family=family.name, classes=classes, crops=np.stack(inputs), targets=np.stack(targets))
 
 
-def _read_sample(data_dir: Path, name: str) -> tuple[np.ndarray, np.ndarray]:
-    image = cv2.imread(str(data_dir / "images" / name), cv2.IMREAD_COLOR)
-    mask = cv2.imread(str(data_dir / "masks" / name), cv2.IMREAD_GRAYSCALE)
-    if image is None or mask is None:
-        raise InputError(f"{data_dir}: cannot read images/{name} or masks/{name}")
-    return cv2.cvtColor(image, cv2.COLOR_BGR2RGB), mask > 0
-
-
 def _crop(data_dir: Path, name: str, size: int) -> np.ndarray:
-    return object_crop(*_read_sample(data_dir, name), size)
+    return object_crop(*read_sample(data_dir, name), size)
 
 
 def train(dataset: Dataset, task: str, out: Path, epochs: int = 8, seed: int = 0,

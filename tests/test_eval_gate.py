@@ -66,3 +66,26 @@ def test_summary_balances_frontal_acceptance_against_turned_rejection():
 def test_cli_rejects_bad_angles(meshes, capsys):
     assert main(["evaluate-gate", "--family", "car", "--meshes", str(meshes), "--angles", "0,abc"]) == 2
     assert "--angles" in capsys.readouterr().err
+
+
+def test_synth_mode_scores_samples_by_their_labels(tmp_path, capsys):
+    data = tmp_path / "syn"
+    assert main(["synth", "--family", "car", "-n", "8", "-o", str(data), "--seed", "5", "--resolution", "96"]) == 0
+    assert main(["evaluate-gate", "--family", "car", "--synth", str(data), "-o", str(tmp_path / "gate")]) == 0
+    printed = capsys.readouterr().out
+    with (data / "labels.csv").open() as handle:
+        labels = {row["file"]: int(row["frontal"]) for row in csv.DictReader(handle)}
+    with (tmp_path / "gate" / "gate.csv").open() as handle:
+        rows = list(csv.DictReader(handle))
+    assert {row["id"]: int(row["frontal"]) for row in rows} == labels
+    frontal = sum(labels.values())
+    assert f"accepted 1.000 of {frontal}\n" in printed and f"of {len(labels) - frontal}\n" in printed
+    # The car's own template, perturbed and seen within ±10°, is a side view to the gate.
+    assert all(row["accepted"] == "1" for row in rows if row["frontal"] == "1")
+
+
+def test_synth_mode_refuses_another_familys_samples(tmp_path, capsys):
+    data = tmp_path / "syn"
+    assert main(["synth", "--family", "car", "-n", "2", "-o", str(data), "--resolution", "64"]) == 0
+    assert main(["evaluate-gate", "--family", "guitar", "--synth", str(data), "-o", str(tmp_path / "gate")]) != 0
+    assert "holds car samples, not guitar" in capsys.readouterr().err
