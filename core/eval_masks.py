@@ -33,11 +33,12 @@ import cv2
 import numpy as np
 
 from frontal3d.errors import ConfigError, Frontal3DError, InputError
+from frontal3d.evaluate import write_csv
 from frontal3d.imageio import read_image
 from frontal3d.photo_render import composite
 from frontal3d.pipeline import Report, segment_object
 from frontal3d.plugins import Plugins
-from frontal3d.synth import linear_gradient, random_colour, smooth_noise, soft_blobs
+from frontal3d.synth import linear_gradient, random_colour, random_direction, random_gradient, smooth_noise, soft_blobs
 
 BACKGROUNDS = ("plain", "gradient", "noise", "mild", "blobs")
 #: Standard deviation of the sensor noise added to every composite (8-bit levels).
@@ -66,31 +67,21 @@ def make_background(kind: str, resolution: int, rng: np.random.Generator) -> np.
     if kind == "plain":
         return np.broadcast_to(random_colour(rng, rng.random() < 0.2), (resolution, resolution, 3)).copy()
     if kind == "gradient":
-        return _random_gradient(resolution, rng)
+        return random_gradient(resolution, rng)
     if kind == "noise":
         texture = smooth_noise(resolution, rng, cells=rng.integers(48, 128))
         return np.clip(random_colour(rng, False) * (1 + 0.25 * texture[..., None]), 0, 255)
     if kind == "mild":
         start = random_colour(rng, False)
-        background = linear_gradient(resolution, start, start * rng.uniform(0.75, 0.95, size=3), _direction(rng))
+        background = linear_gradient(resolution, start, start * rng.uniform(0.75, 0.95, size=3), random_direction(rng))
         axis = np.linspace(-1, 1, resolution)
         radius2 = (axis[None, :] ** 2 + axis[:, None] ** 2) / 2
         background *= (1 - 0.25 * radius2)[..., None]
         background *= 1 + 0.06 * smooth_noise(resolution, rng, cells=rng.integers(16, 48))[..., None]
         return soft_blobs(background, rng, 3, opacity=0.2)
     if kind == "blobs":
-        return soft_blobs(_random_gradient(resolution, rng), rng, int(rng.integers(4, 8)))
+        return soft_blobs(random_gradient(resolution, rng), rng, int(rng.integers(4, 8)))
     raise ConfigError(f"unknown background {kind!r} (choose from {', '.join(BACKGROUNDS)})")
-
-
-def _random_gradient(resolution: int, rng: np.random.Generator) -> np.ndarray:
-    start, end = random_colour(rng, False), random_colour(rng, rng.random() < 0.3)
-    return linear_gradient(resolution, start, end, _direction(rng))
-
-
-def _direction(rng: np.random.Generator) -> np.ndarray:
-    direction = rng.normal(size=2)
-    return direction / np.linalg.norm(direction)
 
 
 def composite_photo(rgba: np.ndarray, kind: str, rng: np.random.Generator) -> np.ndarray:
@@ -174,10 +165,7 @@ def _debug_sheet(photo: np.ndarray, found: np.ndarray, truth: np.ndarray) -> np.
 
 
 def _write(out_dir: Path, scores: list[MaskScore]) -> None:
-    with (out_dir / "masks.csv").open("w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=[field.name for field in fields(MaskScore)])
-        writer.writeheader()
-        writer.writerows(asdict(score) for score in scores)
+    write_csv(out_dir / "masks.csv", tuple(field.name for field in fields(MaskScore)), [asdict(score) for score in scores])
     with (out_dir / "summary.csv").open("w", newline="") as handle:
         writer = csv.writer(handle)
         writer.writerow(("family", "background", "images", "mean_iou", "median_iou", "min_iou", f"below_{TARGET_IOU}", "failed", "mean_seconds"))

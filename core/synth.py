@@ -171,7 +171,7 @@ def _paint(regions: np.ndarray, points: np.ndarray, region_names: tuple[str, ...
         if pattern == 1:
             modulation = 1 + 0.25 * smooth_noise(resolution, rng, cells=rng.integers(4, 24))
         elif pattern == 2:
-            direction = _unit(rng.normal(size=2))
+            direction = random_direction(rng)
             phase = points @ direction * rng.uniform(8, 40) + rng.uniform(0, 2 * np.pi)
             modulation = 1 + 0.2 * np.sign(np.sin(phase))
         else:
@@ -196,10 +196,20 @@ def smooth_noise(resolution: int, rng: np.random.Generator, cells: int) -> np.nd
 
 def _background(resolution: int, rng: np.random.Generator) -> np.ndarray:
     """A gradient between two random colours, with value noise and random soft blobs."""
-    start, end = random_colour(rng, False), random_colour(rng, rng.random() < 0.3)
-    background = linear_gradient(resolution, start, end, _unit(rng.normal(size=2)))
+    background = random_gradient(resolution, rng)
     background *= 1 + 0.2 * smooth_noise(resolution, rng, cells=rng.integers(3, 32))[..., None]
     return soft_blobs(background, rng, int(rng.integers(0, 6)))
+
+
+def random_gradient(resolution: int, rng: np.random.Generator) -> np.ndarray:
+    """A linear ramp between two random colours (the second dark one time in three), in a random direction."""
+    start, end = random_colour(rng, False), random_colour(rng, rng.random() < 0.3)
+    return linear_gradient(resolution, start, end, random_direction(rng))
+
+
+def random_direction(rng: np.random.Generator) -> np.ndarray:
+    """A unit 2D vector in a uniformly random direction."""
+    return _unit(rng.normal(size=2))
 
 
 def linear_gradient(resolution: int, start: np.ndarray, end: np.ndarray, direction: np.ndarray) -> np.ndarray:
