@@ -90,6 +90,10 @@ class ClassifierContext:
         """The agreement the frontal gate judges the view by (the same unless a context hides more from it)."""
         return self.agreement()
 
+    def outline_partly_hidden(self) -> bool:
+        """Whether some of the outline may be hidden (by occluders or people beside the object)."""
+        return False
+
     def turn_evidence(self) -> TurnEvidence:
         """Best canonical-view vs best turned-view template agreement with the outline."""
         if self._turn_evidence is None:
@@ -184,8 +188,7 @@ class FrontalGate:
         mirror_margin = float(context.settings.get("mirror_margin", CORE_FAMILY_SETTINGS["mirror_margin"]))
         # An arm across the object, or a person beside it whose pixels may be the object's,
         # makes any outline lopsided: a partly hidden one is not judged.
-        partly_hidden = any(mask is not None and mask.any() for mask in (getattr(context, "hidden", None), getattr(context, "view_hidden", None)))
-        if threshold > 0 and mirror_margin < 1.0 and not partly_hidden:
+        if threshold > 0 and mirror_margin < 1.0 and not context.outline_partly_hidden():
             mirror = context.mirror_evidence()
             if mirror.asymmetry > mirror_margin:
                 reason = (f"the {family.name} looks turned about its length axis: its outline is lopsided (mirror agreement "

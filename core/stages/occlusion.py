@@ -146,6 +146,9 @@ class VisibleAgreementContext(ClassifierContext):
             self._view_agreement = self._seen(self.agreement(), hidden)
         return self._view_agreement
 
+    def outline_partly_hidden(self) -> bool:
+        return any(mask is not None and mask.any() for mask in (self.hidden, self.view_hidden))
+
     def _seen(self, placed: dict[str, Agreement], hidden: np.ndarray | None) -> dict[str, Agreement]:
         return {subtype: Agreement(iou=seen_iou(self.renders[subtype].mask, found.similarity, self.object_mask, hidden), similarity=found.similarity)
                 for subtype, found in placed.items()}
