@@ -331,13 +331,12 @@ def _cmd_evaluate_occlusion(args: argparse.Namespace) -> int:
 
 
 def _cmd_evaluate_masks(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
     from frontal3d.eval_masks import BACKGROUNDS, evaluate_masks, render_paths, summary_lines
+    from frontal3d.progress import counter
 
     backgrounds = [b.strip() for b in args.backgrounds.split(",") if b.strip()] if args.backgrounds else list(BACKGROUNDS)
     total = len(render_paths(args.renders, args.every, args.offset)) * len(backgrounds)
-    with tqdm(total=total, unit="image", file=sys.stderr, disable=not sys.stderr.isatty(), leave=False) as bar:
+    with counter(total, "image") as bar:
         scores = evaluate_masks(_plugins(args), args.family, args.renders, args.out, backgrounds, every=args.every, offset=args.offset,
                                 seed=args.seed, debug=args.verbose, settings=_parse_sets(args.set), progress=bar.update)
     print("\n".join(summary_lines(scores)))
@@ -346,9 +345,8 @@ def _cmd_evaluate_masks(args: argparse.Namespace) -> int:
 
 
 def _cmd_evaluate_gate(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
     from frontal3d.eval_gate import evaluate_gate, evaluate_gate_on_synth
+    from frontal3d.progress import counter
 
     try:
         angles = [float(a) for a in args.angles.split(",") if a.strip()]
@@ -358,14 +356,14 @@ def _cmd_evaluate_gate(args: argparse.Namespace) -> int:
         raise ConfigError("evaluate-gate needs at least one angle and --resolution >= 64")
     plugins = _plugins(args)
     if args.synth is not None:
-        with tqdm(unit="sample", file=sys.stderr, disable=not sys.stderr.isatty(), leave=False) as bar:
+        with counter(None, "sample") as bar:
             _, summary = evaluate_gate_on_synth(plugins, args.family, args.synth, args.out, args.limit, _parse_sets(args.set),
                                                 args.subtype, progress=bar.update)
         print("\n".join(summary.lines()))
         print(f"wrote {args.out}/gate.csv, summary.txt")
         return 0
     meshes = len(sorted(args.meshes.glob("*.glb"))[: args.limit])
-    with tqdm(total=meshes, unit="mesh", file=sys.stderr, disable=not sys.stderr.isatty(), leave=False) as bar:
+    with counter(meshes, "mesh") as bar:
         _, summary = evaluate_gate(plugins, args.family, args.meshes, args.out, angles, args.resolution, args.limit,
                                    _parse_sets(args.set), args.renders, args.subtype, progress=bar.update)
     print("\n".join(summary.lines()))
@@ -381,9 +379,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 
 def _cmd_synth(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
     from frontal3d.synth import synthesize
+    from frontal3d.progress import counter
 
     if args.count < 1 or args.resolution < 32:
         raise ConfigError("synth needs -n >= 1 and --resolution >= 32")
@@ -391,7 +388,7 @@ def _cmd_synth(args: argparse.Namespace) -> int:
     family = plugins.family(args.family)
     settings = plugins.settings(family.name)
     templates = {s: plugins.hook.frontal3d_template(family=family, subtype=s, settings=settings) for s in family.subtypes}
-    with tqdm(total=args.count, unit="image", file=sys.stderr, disable=not sys.stderr.isatty(), leave=False) as bar:
+    with counter(args.count, "image") as bar:
         labels = synthesize(family, templates, args.count, args.out, seed=args.seed, resolution=args.resolution, progress=bar.update)
     print(f"wrote {args.count} samples of {family.name} ({', '.join(templates)}) to {args.out}; labels in {labels}")
     return 0

@@ -34,6 +34,7 @@ import numpy as np
 
 from frontal3d.errors import ConfigError, Frontal3DError, InputError, NotFrontalError
 from frontal3d.evaluate import METRIC_KEYS, load_mesh, load_render, write_csv, evaluate_pair
+from frontal3d.progress import counter
 
 #: Share of the object the occluder in front hides.
 OCCLUDED_SHARE = (0.10, 0.30)
@@ -281,7 +282,7 @@ def run_occlusion_evaluation(family: str, meshes_dir: Path, renders_dir: Path, k
     cutouts = people_cutouts() if kind == "people" else []
     rng = np.random.default_rng(seed)
     rows: list[dict] = []
-    bar = _bar(len(paths) * per_object, progress, f"occluded {family} ({kind})")
+    bar = counter(len(paths) * per_object, "composite", f"occluded {family} ({kind})", progress)
     for number, path in enumerate(paths):
         gt = load_mesh(path)
         image, mask, _camera = load_render(Path(renders_dir), path.stem)
@@ -368,9 +369,3 @@ def summary_lines(summary: list[dict]) -> list[str]:
 
 def _mean(values: list[float]) -> float:
     return statistics.fmean(values) if values else float("nan")
-
-
-def _bar(total: int, enabled: bool, label: str):
-    from tqdm import tqdm
-
-    return tqdm(total=total, desc=label, unit="composite", disable=not enabled)

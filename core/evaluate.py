@@ -52,6 +52,7 @@ from scipy.spatial import cKDTree
 from frontal3d.errors import InputError
 from frontal3d.photo_render import frontal_camera
 from frontal3d.photo_render import render_frontal as photo_render_frontal
+from frontal3d.progress import counter
 
 #: Resolution and side of the voxel grid the paper's IoU uses (normalized units).
 VOXEL_RESOLUTION = 128
@@ -302,7 +303,8 @@ def run_evaluation(
         raise InputError(f"no *.glb meshes in {meshes_dir}")
     out_dir.mkdir(parents=True, exist_ok=True)
     rows = []
-    for path in _progress(paths, progress, family):
+    bar = counter(len(paths), "mesh", f"evaluate {family}", progress)
+    for path in paths:
         row = {"id": path.stem, "family": family, "subtype": "", "seconds": float("nan"), "error": ""}
         row.update({key: float("nan") for key in METRIC_KEYS + ICP_METRIC_KEYS})
         try:
@@ -318,18 +320,12 @@ def run_evaluation(
             if progress and not isinstance(error, InputError):
                 traceback.print_exc()
         rows.append(row)
+        bar.update(1)
+    bar.close()
     write_csv(out_dir / "metrics.csv", CSV_FIELDS, rows)
     _write_summary(out_dir / "summary.csv", rows)
     _write_boxplots(out_dir / "boxplots.png", rows)
     return rows
-
-
-def _progress(paths: list[Path], enabled: bool, family: str):
-    if not enabled:
-        return paths
-    from tqdm import tqdm
-
-    return tqdm(paths, desc=f"evaluate {family}", unit="mesh")
 
 
 def write_csv(path: Path, fields: tuple[str, ...], rows: list[dict]) -> None:

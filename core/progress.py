@@ -1,4 +1,4 @@
-"""Progress on long work: one bar over the images, the running stage as its label."""
+"""Progress on long work: bars on stderr, shown only when stderr is a terminal (logs and CI stay clean)."""
 
 from __future__ import annotations
 
@@ -8,6 +8,12 @@ from types import TracebackType
 from tqdm import tqdm
 
 
+def counter(total: int | None, unit: str, desc: str | None = None, enabled: bool | None = None) -> tqdm:
+    """A counting bar for batch commands (evaluate, synth, training epochs); `enabled` None means "stderr is a terminal"."""
+    show = sys.stderr.isatty() if enabled is None else enabled
+    return tqdm(total=total, desc=desc, unit=unit, file=sys.stderr, disable=not show, leave=False)
+
+
 class StageProgress:
     """A progress bar over images whose label names the image and the running stage.
 
@@ -15,7 +21,7 @@ class StageProgress:
     """
 
     def __init__(self, total: int):
-        self._bar = tqdm(total=total, unit="image", file=sys.stderr, disable=not sys.stderr.isatty(), leave=False)
+        self._bar = counter(total, "image")
         self._image = ""
         self._started = False
 

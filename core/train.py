@@ -9,7 +9,6 @@ trained on) to report accuracy or IoU after every epoch.
 
 from __future__ import annotations
 
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -19,12 +18,12 @@ import numpy as np
 import torch
 from torch import nn
 from torch.nn import functional
-from tqdm import tqdm
 
 from frontal3d.errors import ConfigError, InputError
 from frontal3d.family import Family
 from frontal3d.learned import ARCHITECTURES, CLASSIFIER_TASKS, DENSE_TASKS, FORMAT_VERSION, GATE_CLASSES, INPUT_SIZE, WIDTHS, crop_square, cut_square, object_crop, to_tensor
 from frontal3d.learned_dense import DENSE_INPUT_SIZE, DENSE_WIDTHS, SEGMENTER_CLASSES, dense_probabilities, family_region_names, letterbox, regions_input
+from frontal3d.progress import counter
 from frontal3d.synth import read_family_labels, read_sample
 
 #: Share of the samples held out for the accuracy report.
@@ -228,13 +227,12 @@ def train(dataset: Dataset, task: str, out: Path, epochs: int = 8, seed: int = 0
     steps = max(1, epochs * int(np.ceil(len(kept) / batch_size)))
     schedule = torch.optim.lr_scheduler.OneCycleLR(optimiser, max_lr=LEARNING_RATE, total_steps=steps)
     result = TrainingResult(train_count=len(kept), held_out_count=len(held), metric=metric)
-    show = sys.stderr.isatty() if show_progress is None else show_progress
     for epoch in range(1, epochs + 1):
         model.train()
         rng.shuffle(kept)
         batches = [kept[i : i + batch_size] for i in range(0, len(kept), batch_size)]
-        bar = tqdm(batches, desc=f"epoch {epoch}/{epochs}", unit="batch", file=sys.stderr, disable=not show, leave=False)
-        for batch in bar:
+        bar = counter(len(batches), "batch", f"epoch {epoch}/{epochs}", show_progress)
+        for batch in batches:
             inputs, targets = _augment(to_tensor(dataset.crops[batch]), torch.from_numpy(dataset.targets[batch]), rng)
             loss = loss_of(model(inputs), targets)
             optimiser.zero_grad()
@@ -242,6 +240,8 @@ def train(dataset: Dataset, task: str, out: Path, epochs: int = 8, seed: int = 0
             optimiser.step()
             schedule.step()
             bar.set_postfix(loss=f"{loss.item():.3f}")
+            bar.update(1)
+        bar.close()
         inputs, targets = dataset.crops[held], dataset.targets[held]
         result.held_out_accuracy.append(held_out_iou(model, inputs, targets, scored_classes) if dense else evaluate(model, inputs, targets))
         log(f"epoch {epoch}/{epochs}: held-out {metric} {result.held_out_accuracy[-1]:.3f} ({len(held)} samples)")
