@@ -200,14 +200,14 @@ def _reconstruct_shape_and_texture(
         work_grey = cv2.cvtColor(work_rgb, cv2.COLOR_RGB2GRAY)
         template_grey = _shade(renders.front_normals, renders.mask)
         work_shape = _to_working(probable_shape.astype(np.uint8), crop, cv2.INTER_NEAREST) > 0
+        partly_hidden = isinstance(context, occlusion.VisibleAgreementContext) and context.hidden is not None
+        hidden = _to_working(context.hidden.astype(np.uint8), crop, cv2.INTER_NEAREST) > 0 if partly_hidden else None
         similarity, diagnostics = align.align_template(
-            renders.mask, work_shape, template_grey, work_grey, max_angle=np.deg2rad(settings["max_angle_deg"])
+            renders.mask, work_shape, template_grey, work_grey, max_angle=np.deg2rad(settings["max_angle_deg"]), hidden=hidden
         )
-        if isinstance(context, occlusion.VisibleAgreementContext) and context.hidden is not None:
-            # Under occluders the mutual information also sees skin inside the probable
-            # shape and can turn the template far off (53 degrees on a guitar whose tail
-            # an arm covers); the classifier placed it by the visible silhouette alone.
-            hidden = _to_working(context.hidden.astype(np.uint8), crop, cv2.INTER_NEAREST) > 0
+        if partly_hidden:
+            # Hidden pixels do not vote in either placement, but the mutual information also
+            # weighs the grey image and may still agree worse with the visible outline.
             placed = _working_similarity(context.agreement()[subtype].similarity, crop)
             diagnostics["source"] = "mutual information"
             if occlusion.seen_iou(renders.mask, placed, work_mask, hidden) > occlusion.seen_iou(renders.mask, similarity, work_mask, hidden):
@@ -398,15 +398,23 @@ def _group_near_largest(objects: list[np.ndarray], occluders: np.ndarray | None 
 
 def _pieces_across_occluders(found: np.ndarray, occluders: np.ndarray | None, chosen: np.ndarray) -> np.ndarray:
     """Pieces of ``found`` an occluder touching ``chosen`` cut off from it, however small
-    (the tail of a guitar below a strumming arm is not clutter: it fixes the body's length)."""
+    (the tail of a guitar below a strumming arm is not clutter: it fixes the body's length),
+    and in turn the pieces the occluders touching those cut off (a headstock beyond a
+    forearm whose hand, a separate occluder piece, lies on the neck)."""
     touching = _touching(occluders, chosen)
     if not touching.any():
         return np.zeros_like(chosen)
     _count, labels, stats, _ = cv2.connectedComponentsWithStats(found.astype(np.uint8), connectivity=8)
-    near = cv2.dilate(touching.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
-    across = np.unique(labels[near & found])
-    across = across[(across > 0) & (stats[across, cv2.CC_STAT_AREA] >= segment.MIN_OBJECT_PIXELS)]
-    return np.isin(labels, across)
+    joined = np.zeros_like(chosen)
+    while True:
+        near = cv2.dilate(touching.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+        across = np.unique(labels[near & found])
+        across = across[(across > 0) & (stats[across, cv2.CC_STAT_AREA] >= segment.MIN_OBJECT_PIXELS)]
+        grown = np.isin(labels, across)
+        if not (grown & ~joined).any():
+            return joined
+        joined |= grown
+        touching = _touching(occluders, chosen | joined)
 
 
 def _touching(occluders: np.ndarray | None, mask: np.ndarray) -> np.ndarray:

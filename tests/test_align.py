@@ -153,3 +153,32 @@ def test_an_aligned_symmetric_object_keeps_its_placement():
     sim, diagnostics = align_template(template, obj)
     assert angle_error_deg(sim.angle, np.deg2rad(-50.0)) < 3.0
     assert not diagnostics["placed_on_mirror_axis"]
+
+
+def test_hidden_pixels_do_not_shrink_the_template_onto_the_visible_part():
+    """An arm along the whole neck leaves the body: scored on every pixel, the template shrinks
+    onto the body; with the arm's pixels hidden, the body alone places it at the true scale."""
+    template = draw(TO_TEMPLATE.apply(GUITAR), (300, 300))
+    outline_to_image = Similarity(0.8, np.deg2rad(8.0), 150.0, 160.0)
+    truth = outline_to_image.compose(TO_TEMPLATE.inverse())
+    obj = draw(outline_to_image.apply(GUITAR), (300, 300))
+    # The forearm runs down the neck's axis from beyond the headstock to near the body.
+    head, neck_base = outline_to_image.apply(GUITAR[[0, 1, 12, 3]].reshape(2, 2, 2).mean(axis=1))
+    beyond = head + 3.0 * (head - neck_base)
+    arm = np.zeros(obj.shape, np.uint8)
+    cv2.line(arm, tuple(np.round(beyond).astype(int)), tuple(np.round(head + 0.85 * (neck_base - head)).astype(int)), 1, 21)
+    arm = arm > 0
+    visible = obj & ~arm
+    assert 0.1 * obj.sum() < (obj & arm).sum() < 0.3 * obj.sum()
+    hidden = cv2.dilate(arm.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+    contour = outline_contour(template)
+
+    def error(sim: Similarity) -> float:
+        return float(np.linalg.norm(sim.apply(contour) - truth.apply(contour), axis=1).mean())
+
+    blind, _ = align_template(template, visible)
+    seen, _ = align_template(template, visible, hidden=hidden)
+
+    assert error(blind) > 10.0
+    assert error(seen) < 2.0
+    assert abs(seen.scale / truth.scale - 1.0) < 0.03

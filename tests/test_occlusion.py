@@ -205,7 +205,7 @@ def test_occluded_pixels_do_not_vote_on_the_subtype():
     decision = SubtypeClassifier().classify(context)
 
     assert decision.label == "waisted"
-    assert decision.confidence > 0.7
+    assert decision.confidence > 0.6  # the plain body, placed on the seen outline too, comes closer than when the arm voted
     assert context.agreement()["waisted"].iou > 0.97
 
 
@@ -224,6 +224,33 @@ def test_a_piece_an_arm_cuts_off_is_kept_however_small():
 
     assert _choose_object(visible, arm, family, Report())[tail].all()
     assert not _choose_object(visible, None, family, Report())[tail].any()  # without the arm it is a speck
+
+
+def test_a_headstock_beyond_a_forearm_and_its_hand_is_kept():
+    """The hand on the neck and the forearm over it are separate occluder pieces, and only
+    the hand touches the body: the headstock joins through the bit of neck between them."""
+    shape = (400, 200)
+    body = _ellipse(shape, (100, 320), (70, 70))
+    neck = np.zeros(shape, bool)
+    neck[30:260, 92:108] = True
+    hand = _ellipse(shape, (100, 230), (25, 20))
+    forearm = np.zeros(shape, bool)
+    forearm[60:200, :115] = True  # from the left border, across the neck
+    occluders = hand | forearm
+    visible = (body | neck) & ~occluders
+    rows = np.arange(shape[0])[:, None]
+    headstock, neck_bit = visible & (rows < 60), visible & (rows > 200) & (rows < 210)
+    assert headstock.sum() > 100 and neck_bit.any() and len(_pieces(occluders)) == 2
+    family = Family(name="guitar", subtypes=("x",), canonical_view="front", regions={"x": ("body",)}, real_size={"x": 1.0})
+
+    chosen = _choose_object(visible, occluders, family, Report())
+
+    assert chosen[neck_bit].all() and chosen[headstock].all()
+
+
+def _pieces(mask: np.ndarray) -> list[int]:
+    count, labels = cv2.connectedComponents(mask.astype(np.uint8))
+    return [int((labels == i).sum()) for i in range(1, count)]
 
 
 @needs_mediapipe

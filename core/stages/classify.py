@@ -118,17 +118,20 @@ class Classifier(Protocol):
     def classify(self, context: ClassifierContext) -> Decision: ...
 
 
-def silhouette_agreement(object_mask: np.ndarray, renders: dict[str, TemplateRenders], max_angle: float) -> dict[str, Agreement]:
+def silhouette_agreement(object_mask: np.ndarray, renders: dict[str, TemplateRenders], max_angle: float,
+                         hidden: np.ndarray | None = None) -> dict[str, Agreement]:
     """Align each subtype's template mask to ``object_mask`` at ~128 px and report the IoU.
 
     The returned similarity maps full-resolution template render pixels to
     ``object_mask`` pixels, so it can place the template's region maps on the image.
+    ``hidden`` pixels (under occluders) do not vote on the placement (see
+    :func:`~frontal3d.stages.align.align_template`); the IoU is still the plain one.
     """
-    object_small, object_to_small = _normalised(object_mask)
+    object_small, object_to_small, hidden_small = _normalised(object_mask, hidden)
     result = {}
     for subtype, render in renders.items():
-        template_small, template_to_small = _normalised(render.mask)
-        small_sim, diagnostics = align_template(template_small, object_small, max_angle=max_angle)
+        template_small, template_to_small, _ = _normalised(render.mask)
+        small_sim, diagnostics = align_template(template_small, object_small, max_angle=max_angle, hidden=hidden_small)
         full_sim = object_to_small.inverse().compose(small_sim.compose(template_to_small))
         result[subtype] = Agreement(iou=float(diagnostics["iou"]), similarity=full_sim)
     return result
@@ -251,21 +254,40 @@ def _hole_evidence(context: ClassifierContext, subtype: str) -> float:
     return float(np.clip(2.0 * (dark[hole].mean() - dark[ring].mean()) - 0.5, -1.0, 1.0))
 
 
-def _normalised(mask: np.ndarray) -> tuple[np.ndarray, Similarity]:
-    """The mask cropped to its box (10 % margin) and shrunk to AGREEMENT_SIZE, and that map as a similarity."""
+def _normalised(mask: np.ndarray, hidden: np.ndarray | None = None) -> tuple[np.ndarray, Similarity, np.ndarray | None]:
+    """The mask cropped to its box (10 % margin) and shrunk to AGREEMENT_SIZE, that map as a
+    similarity, and ``hidden`` on the same grid (a grid pixel any of whose area is hidden).
+
+    With ``hidden`` pixels the box also takes in those within one box size of it at the
+    same scale: a template part under an occluder must not fall off the grid.
+    """
     ys, xs = np.nonzero(mask)
     height, width = ys.max() - ys.min() + 1, xs.max() - xs.min() + 1
     margin = int(0.1 * max(height, width)) + 2
     y0, x0 = ys.min() - margin, xs.min() - margin
-    box = np.zeros((height + 2 * margin, width + 2 * margin), np.uint8)
-    box[margin:-margin, margin:-margin] = mask[ys.min() : ys.max() + 1, xs.min() : xs.max() + 1]
-    scale = AGREEMENT_SIZE / max(box.shape)
+    y1, x1 = ys.max() + 1 + margin, xs.max() + 1 + margin
+    scale = AGREEMENT_SIZE / (max(height, width) + 2 * margin)
+    if hidden is not None and hidden.any():
+        reach = max(y1 - y0, x1 - x0)
+        hy, hx = np.nonzero(hidden[max(0, y0 - reach) : y1 + reach, max(0, x0 - reach) : x1 + reach])
+        if len(hy):
+            hy, hx = hy + max(0, y0 - reach), hx + max(0, x0 - reach)
+            y0, x0, y1, x1 = min(y0, hy.min()), min(x0, hx.min()), max(y1, hy.max() + 1), max(x1, hx.max() + 1)
+    box = np.zeros((y1 - y0, x1 - x0), np.uint8)
+    box[ys - y0, xs - x0] = mask[ys, xs]
     size = (max(8, round(box.shape[1] * scale)), max(8, round(box.shape[0] * scale)))
     small = cv2.resize(box, size, interpolation=cv2.INTER_AREA) > 0
     sx, sy = size[0] / box.shape[1], size[1] / box.shape[0]
     scale = (sx + sy) / 2.0
+    hidden_small = None
+    if hidden is not None:
+        hidden_box = np.zeros_like(box)
+        top, left = max(0, y0), max(0, x0)
+        window = hidden[top:y1, left:x1]
+        hidden_box[top - y0 : top - y0 + window.shape[0], left - x0 : left - x0 + window.shape[1]] = window
+        hidden_small = cv2.resize(hidden_box, size, interpolation=cv2.INTER_AREA) > 0
     # Pixel centres: small = (full - origin + 0.5) * scale - 0.5.
-    return small, Similarity(scale, 0.0, (0.5 - x0) * scale - 0.5, (0.5 - y0) * scale - 0.5)
+    return small, Similarity(scale, 0.0, (0.5 - x0) * scale - 0.5, (0.5 - y0) * scale - 0.5), hidden_small
 
 
 def foreshortening(object_mask: np.ndarray, render: TemplateRenders, similarity: Similarity) -> float:

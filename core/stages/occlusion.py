@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 from frontal3d.stages.align import Similarity, warp_mask
 from frontal3d.stages.boundary import default_k, match_contours, trace_contour
-from frontal3d.stages.classify import Agreement, ClassifierContext
+from frontal3d.stages.classify import Agreement, ClassifierContext, silhouette_agreement
 from frontal3d.stages.regions import reconstruct_region_map
 from scipy.ndimage import binary_fill_holes
 
@@ -135,7 +135,9 @@ class VisibleAgreementContext(ClassifierContext):
 
     def agreement(self) -> dict[str, Agreement]:
         if self._agreement is None:
-            self._agreement = self._seen(super().agreement(), self.hidden)
+            max_angle = np.deg2rad(float(self.settings.get("max_angle_deg", 180.0)))
+            placed = silhouette_agreement(self.object_mask, self.renders, max_angle, hidden=self.hidden)
+            self._agreement = self._seen(placed, self.hidden)
         return self._agreement
 
     def view_agreement(self) -> dict[str, Agreement]:
