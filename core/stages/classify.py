@@ -22,6 +22,7 @@ from frontal3d.family import Family
 from frontal3d.render import TemplateRenders
 from frontal3d.stages.align import Similarity, align_template, warp_labels
 from frontal3d.stages.mirror_symmetry import MirrorEvidence, mirror_evidence
+from frontal3d.stages.neck_parallax import ParallaxEvidence, parallax_evidence
 from frontal3d.stages.turned_views import TurnEvidence, turn_evidence
 
 #: Long side, in pixels, of the masks compared by the silhouette classifiers.
@@ -66,8 +67,8 @@ class ClassifierContext:
     """What every classifier may look at; silhouette agreements are computed once and shared.
 
     ``settings`` needs ``max_angle_deg`` (rotation searched) and ``frontal_threshold``;
-    ``turned_margin`` and ``mirror_margin`` are optional (default: the core settings', which
-    leave those tests off).
+    ``turned_margin``, ``mirror_margin`` and ``parallax_margin`` are optional (default: the
+    core settings', which leave those tests off).
     """
 
     image: np.ndarray
@@ -78,6 +79,7 @@ class ClassifierContext:
     _agreement: dict[str, Agreement] | None = field(default=None, repr=False)
     _turn_evidence: TurnEvidence | None = field(default=None, repr=False)
     _mirror_evidence: MirrorEvidence | None = field(default=None, repr=False)
+    _parallax_evidence: ParallaxEvidence | None = field(default=None, repr=False)
 
     def agreement(self) -> dict[str, Agreement]:
         """Per subtype: IoU with the aligned template and the template -> image similarity."""
@@ -107,6 +109,13 @@ class ClassifierContext:
             best, found = max(self.agreement().items(), key=lambda item: item[1].iou)
             self._mirror_evidence = mirror_evidence(self.object_mask, self.renders[best], found.similarity)
         return self._mirror_evidence
+
+    def parallax_evidence(self) -> ParallaxEvidence:
+        """How far the neck sits off the body's midline, in the best-agreeing template's frame."""
+        if self._parallax_evidence is None:
+            best, found = max(self.agreement().items(), key=lambda item: item[1].iou)
+            self._parallax_evidence = parallax_evidence(self.object_mask, self.renders[best], found.similarity)
+        return self._parallax_evidence
 
 
 class Classifier(Protocol):
@@ -140,7 +149,7 @@ def silhouette_agreement(object_mask: np.ndarray, renders: dict[str, TemplateRen
 class FrontalGate:
     """Rejects views too far from the family's canonical view (the paper allows about ±10°).
 
-    Three silhouette tests, all training-free:
+    Four silhouette tests, all training-free:
 
     - score = best over subtypes of IoU x :func:`foreshortening` must reach the family's
       ``frontal_threshold``: IoU alone barely drops when a car turns (a front view of a
@@ -158,6 +167,11 @@ class FrontalGate:
       plane rolled, a guitar turned about its neck) that keep the outline's size; off
       (1.0) unless the family sets it, since a side-view car has no such axis, and
       skipped when occluders hide part of the outline.
+    - the neck's centre line may not run beside the body's midline by more than
+      ``parallax_margin`` of the body's width (see :mod:`frontal3d.stages.neck_parallax`).
+      This catches a guitar turned about its neck by 30-60°, whose outline stays
+      symmetric and plausible; off (1.0) unless the family sets it, and skipped, as the
+      mirror test, when the outline is partly hidden.
 
     ``frontal_threshold`` 0 switches the gate off (evaluation runs on known-frontal data).
     """
@@ -196,6 +210,14 @@ class FrontalGate:
             if mirror.asymmetry > mirror_margin:
                 reason = (f"the {family.name} looks turned about its length axis: its outline is lopsided (mirror agreement "
                           f"{mirror.object_iou:.2f} vs the template's {mirror.template_iou:.2f}); this family needs {view}")
+                return Decision(name=self.name, label="not frontal", confidence=best, accepted=False, reason=reason)
+        parallax_margin = float(context.settings.get("parallax_margin", CORE_FAMILY_SETTINGS["parallax_margin"]))
+        if threshold > 0 and parallax_margin < 1.0 and not context.outline_partly_hidden():
+            parallax = context.parallax_evidence()
+            if abs(parallax.offset) > parallax_margin:
+                reason = (f"the {family.name} looks turned sideways: its neck runs {abs(parallax.offset):.0%} of the body's width "
+                          f"beside the body's midline (at most {parallax_margin:.0%} in a {family.canonical_view} view); "
+                          f"this family needs {view}")
                 return Decision(name=self.name, label="not frontal", confidence=best, accepted=False, reason=reason)
         reason = f"the {family.name} matches a {family.canonical_view} view (silhouette agreement {best:.2f} >= {threshold:.2f})"
         return Decision(name=self.name, label="frontal", confidence=best, accepted=True, reason=reason)

@@ -1,0 +1,122 @@
+"""Neck-parallax evidence: the frontal gate tells a guitar turned about its neck from a frontal one."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+from frontal3d.eval_gate import turned
+from frontal3d.evaluate import render_frontal
+from frontal3d.family import Family, Template
+from frontal3d.plugins import Plugins
+from frontal3d.render import TemplateRenders, render_template
+from frontal3d.stages.align import Similarity
+from frontal3d.stages.classify import ClassifierContext, FrontalGate
+from frontal3d.stages.neck_parallax import parallax_evidence
+from frontal3d.stages.occlusion import VisibleAgreementContext
+
+#: Side of the template and of the views: fine enough for a neck a dozen pixels wide.
+RESOLUTION = 400
+FAMILY = Family(name="guitar", subtypes=("classical",), canonical_view="front", regions={"classical": ("body", "neck")},
+                real_size={"classical": 1.0}, view_hint="a front view of the guitar's face")
+
+
+def _guitar() -> tuple[trimesh.Trimesh, np.ndarray]:
+    """A classical-guitar-like solid (neck +Y, face +Z): a 10 cm deep body of two bouts, a neck lying
+    on the face, a headstock; and each face's region (0 body, 1 neck)."""
+    lower = trimesh.creation.cylinder(radius=0.19, height=0.1, sections=64)
+    lower.apply_translation([0.0, -0.3, 0.0])
+    upper = trimesh.creation.cylinder(radius=0.14, height=0.1, sections=64)
+    upper.apply_translation([0.0, -0.08, 0.0])
+    neck = trimesh.creation.box(extents=[0.055, 0.5, 0.05])
+    neck.apply_translation([0.0, 0.3, 0.055])
+    head = trimesh.creation.box(extents=[0.08, 0.16, 0.03])
+    head.apply_translation([0.0, 0.62, 0.055])
+    parts = [lower, upper, neck, head]
+    labels = np.concatenate([np.full(len(part.faces), label) for part, label in zip(parts, (0, 0, 1, 1))])
+    return trimesh.util.concatenate(parts), labels
+
+
+@pytest.fixture(scope="module")
+def guitar() -> trimesh.Trimesh:
+    return _guitar()[0]
+
+
+@pytest.fixture(scope="module")
+def template() -> TemplateRenders:
+    mesh, labels = _guitar()
+    return render_template(Template("guitar", "classical", mesh, labels, ("body", "neck")), RESOLUTION)
+
+
+def _settings(parallax_margin: float) -> dict:
+    return {"max_angle_deg": 120.0, "frontal_threshold": 0.45, "parallax_margin": parallax_margin}
+
+
+def _gate(template: TemplateRenders, mask: np.ndarray, parallax_margin: float):
+    context = ClassifierContext(image=np.zeros(mask.shape + (3,), np.uint8), object_mask=mask, family=FAMILY,
+                                renders={"classical": template}, settings=_settings(parallax_margin))
+    return FrontalGate().classify(context)
+
+
+@pytest.mark.parametrize(("axis", "degrees", "frontal"), [("yaw", 0.0, True), ("yaw", 10.0, True), ("pitch", 10.0, True),
+                                                          ("yaw", 45.0, False), ("yaw", -45.0, False), ("yaw", 60.0, False)])
+def test_shipped_guitar_margin_rejects_a_guitar_turned_about_its_neck_only(guitar, template, axis, degrees, frontal):
+    margin = Plugins().settings("guitar")["parallax_margin"]
+    mask = render_frontal(turned(guitar, axis, degrees), RESOLUTION)[1]
+    decision = _gate(template, mask, margin)
+    assert decision.accepted is frontal
+    if not frontal:
+        assert "turned sideways" in decision.reason and "front view" in decision.reason
+        # Without the parallax test the silhouette tests let the turned guitar through.
+        assert _gate(template, mask, 1.0).accepted
+
+
+def test_the_offset_grows_with_the_turn_and_changes_sign_with_its_direction(guitar, template):
+    def offset(degrees: float) -> float:
+        mask = render_frontal(turned(guitar, "yaw", degrees), RESOLUTION)[1]
+        context = ClassifierContext(image=np.zeros(mask.shape + (3,), np.uint8), object_mask=mask, family=FAMILY,
+                                    renders={"classical": template}, settings=_settings(1.0))
+        return context.parallax_evidence().offset
+
+    offsets = [offset(d) for d in (0.0, 20.0, 40.0, 60.0)]
+    assert abs(offsets[0]) < 0.01
+    assert 0.01 < abs(offsets[1]) < abs(offsets[2]) < abs(offsets[3])
+    assert np.sign(offset(-40.0)) == -np.sign(offsets[2])
+
+
+def test_a_bent_photo_of_a_frontal_guitar_is_not_taken_for_a_turn(template):
+    """Rows shifted along a parabola (synth's banana bend, lens distortion): the neck and body lines still meet."""
+    mask = template.mask
+    rows = np.flatnonzero(mask.any(axis=1))
+    along = (np.arange(mask.shape[0]) - rows.mean()) / (np.ptp(rows) / 2)
+    shift = np.round(0.05 * np.ptp(rows) * (along**2 - 1 / 3)).astype(int)
+    bent = np.array([np.roll(row, s) for row, s in zip(mask, shift)])
+    identity = Similarity(1.0, 0.0, 0.0, 0.0)
+    assert abs(parallax_evidence(bent, template, identity).offset) < Plugins().settings("guitar")["parallax_margin"]
+    # The same neck moved sideways by a constant (what a turn does) is seen: by 12 px, a tenth of the body's width.
+    above_body = np.arange(mask.shape[0]) < np.flatnonzero((template.front_regions == 0).any(axis=1)).min()
+    shifted = mask.copy()
+    shifted[above_body] = np.roll(mask[above_body], 12, axis=1)
+    body_width = np.ptp(np.flatnonzero(mask.any(axis=0)))
+    assert parallax_evidence(shifted, template, identity).offset == pytest.approx(12 / body_width, abs=0.01)
+
+
+def test_a_template_without_a_neck_gives_no_evidence(template):
+    no_neck = TemplateRenders(template.center, template.half_width, template.mask, template.front_depth, template.back_depth,
+                              template.front_normals, template.back_normals, np.where(template.mask, 0, -1),
+                              np.where(template.mask, 0, -1), ("body",))
+    evidence = parallax_evidence(np.roll(template.mask, 5, axis=1), no_neck, Similarity(1.0, 0.0, 0.0, 0.0))
+    assert evidence.offset == 0.0
+
+
+def test_parallax_test_does_not_judge_an_outline_a_person_beside_it_may_hide(guitar, template):
+    margin = Plugins().settings("guitar")["parallax_margin"]
+    mask = render_frontal(turned(guitar, "yaw", 45.0), RESOLUTION)[1]
+    assert not _gate(template, mask, margin).accepted
+    beside = np.zeros_like(mask)
+    columns = np.flatnonzero(mask.any(axis=0))
+    beside[:, columns[-1] + 1 : columns[-1] + 6] = True
+    context = VisibleAgreementContext(image=np.zeros(mask.shape + (3,), np.uint8), object_mask=mask, family=FAMILY,
+                                      renders={"classical": template}, settings=_settings(margin), view_hidden=beside)
+    assert FrontalGate().classify(context).accepted
