@@ -102,6 +102,21 @@ def test_a_bent_photo_of_a_frontal_guitar_is_not_taken_for_a_turn(template):
     assert parallax_evidence(shifted, template, identity).offset == pytest.approx(12 / body_width, abs=0.01)
 
 
+def test_an_arm_across_the_body_that_nobody_flagged_is_not_taken_for_a_turn(template):
+    """An unflagged arm cuts the right part off a band of body rows: those rows are outliers of the midline."""
+    mask = template.mask.copy()
+    body_rows = np.flatnonzero((template.front_regions == 0).any(axis=1))
+    columns = np.flatnonzero(mask.any(axis=0))
+    centre, width = columns.mean(), np.ptp(columns)
+    band = body_rows[int(0.55 * body_rows.size) : int(0.7 * body_rows.size)]
+    mask[band, int(centre + 0.1 * width) :] = False
+    identity = Similarity(1.0, 0.0, 0.0, 0.0)
+    assert abs(parallax_evidence(mask, template, identity).offset) < 0.02
+    # Half the body cut away along its length: a gap wider than any turn makes, so no evidence either way.
+    mask[body_rows[int(0.3 * body_rows.size) :], int(centre) :] = False
+    assert parallax_evidence(mask, template, identity).offset == 0.0
+
+
 def test_a_template_without_a_neck_gives_no_evidence(template):
     no_neck = TemplateRenders(template.center, template.half_width, template.mask, template.front_depth, template.back_depth,
                               template.front_normals, template.back_normals, np.where(template.mask, 0, -1),

@@ -215,8 +215,8 @@ class FrontalGate:
         if threshold > 0 and parallax_margin < 1.0 and not context.outline_partly_hidden():
             parallax = context.parallax_evidence()
             if abs(parallax.offset) > parallax_margin:
-                reason = (f"the {family.name} looks turned sideways: its neck runs {abs(parallax.offset):.0%} of the body's width "
-                          f"beside the body's midline (at most {parallax_margin:.0%} in a {family.canonical_view} view); "
+                reason = (f"the {family.name} looks turned sideways: its neck runs {abs(parallax.offset):.1%} of the body's width "
+                          f"beside the body's midline (at most {parallax_margin:.1%} in a {family.canonical_view} view); "
                           f"this family needs {view}")
                 return Decision(name=self.name, label="not frontal", confidence=best, accepted=False, reason=reason)
         reason = f"the {family.name} matches a {family.canonical_view} view (silhouette agreement {best:.2f} >= {threshold:.2f})"

@@ -15,7 +15,9 @@ the mid-points of the rows between its waist and its lower bout. Each is extende
 the row where the template's neck meets its body, and their sideways gap, as a share
 of the body's width, is the offset. Comparing the lines where they meet, not the body's
 centre with the far end of the neck, keeps a slightly bent photo (or synth's banana
-bend) from reading as a turn. The template's own offset (zero for a symmetric one)
+bend) from reading as a turn. Rows that an occluder nobody flagged cuts (an arm across
+the body) leave their line as outliers; when too many do, or the gap is wider than any
+turn makes, there is no evidence. The template's own offset (zero for a symmetric one)
 is subtracted. Families switch the test on with ``parallax_margin``; templates
 without both regions give no evidence.
 """
@@ -43,6 +45,12 @@ NECK_WINDOW = 2.5
 BODY_ROWS = (0.4, 0.85)
 #: Fewest usable rows of either part for a measurement.
 MIN_ROWS = 5
+#: Share of each part's rows that must agree with its fitted line: an arm across the body or a
+#: hand on the neck moves the rows it cuts, and too many cut rows leave no evidence.
+MIN_INLIER_SHARE = 0.6
+#: Largest gap (share of the body's width) a turn can make: a guitar's neck stands at most about a
+#: sixth of the body's width in front of its mid-plane. A larger gap is a damaged mask, not a turn.
+MAX_TURN_OFFSET = 0.25
 _TEMPLATE_CACHE: dict[str, "_Layout | None"] = {}
 _CACHE_LIMIT = 32
 
@@ -72,7 +80,8 @@ class _Layout:
 
 
 def parallax_evidence(object_mask: np.ndarray, render: TemplateRenders, similarity: Similarity) -> ParallaxEvidence:
-    """The object's neck offset vs the template's; zero offsets when the template or the object lacks a neck or body."""
+    """The object's neck offset vs the template's; zero offsets (no evidence) when the template lacks a neck
+    or body, or the object's rows do not show one (hidden, cut by an occluder, far off any turn)."""
     layout = _layout(render)
     if layout is None:
         return ParallaxEvidence(0.0, 0.0)
@@ -118,7 +127,8 @@ def _template_layout(render: TemplateRenders) -> _Layout | None:
 
 
 def _offset(mask: np.ndarray, layout: _Layout) -> float | None:
-    """Neck centre line minus body midline at the junction row, over the body's width; None if too few rows."""
+    """Neck centre line minus body midline at the junction row, over the body's width; None if too few
+    rows agree with the lines or the gap is larger than any turn makes."""
     columns = np.arange(mask.shape[1])
     near_neck = (columns >= layout.neck_columns[0]) & (columns <= layout.neck_columns[1])
     neck_points = [(row, columns[mask[row] & near_neck].mean()) for row in layout.neck_rows if (mask[row] & near_neck).sum() >= 2]
@@ -130,7 +140,24 @@ def _offset(mask: np.ndarray, layout: _Layout) -> float | None:
     if len(neck_points) < MIN_ROWS or len(body_points) < MIN_ROWS:
         return None
     neck, body = np.array(neck_points), np.array(body_points)
-    neck_line = np.polyfit(neck[:, 0], neck[:, 1], 1)
-    body_line = np.polyfit(body[:, 0], body[:, 1], 1)
+    neck_fit, body_fit = _robust_line(neck[:, 0], neck[:, 1]), _robust_line(body[:, 0], body[:, 1])
+    if neck_fit is None or body_fit is None:
+        return None
+    (neck_line, _), (body_line, body_inliers) = neck_fit, body_fit
     gap = np.polyval(neck_line, layout.junction_row) - np.polyval(body_line, layout.junction_row)
-    return float(gap / max(body[:, 2].max(), 1.0))
+    offset = float(gap / max(body[body_inliers, 2].max(), 1.0))
+    return offset if abs(offset) <= MAX_TURN_OFFSET else None
+
+
+def _robust_line(rows: np.ndarray, centres: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """Line through the row centres without the rows more than 3 robust deviations (at least a
+    pixel) off it, starting from their median (the template frame keeps both lines near upright,
+    and a median ignores a minority of cut rows); None when fewer than MIN_INLIER_SHARE stay."""
+    line = np.array([0.0, float(np.median(centres))])
+    for _ in range(3):
+        residual = np.abs(centres - np.polyval(line, rows))
+        inliers = residual <= 3.0 * max(1.0, 1.4826 * float(np.median(residual)))
+        if inliers.sum() < max(MIN_ROWS, MIN_INLIER_SHARE * rows.size):
+            return None
+        line = np.polyfit(rows[inliers], centres[inliers], 1)
+    return line, inliers
