@@ -61,10 +61,10 @@ OBJECT_LIKENESS = 2.0
 MAX_FILLED_HOLE = 0.01
 #: Below this fraction of the image, what GrabCut found is noise, not an object.
 MIN_FOREGROUND = 0.01
-#: A learned p(object) below this is background, beyond :data:`LEARNED_REACH` of higher ones.
+#: A learned p(object) from this up marks the network's object, at its widest.
 LEARNED_UNLIKELY = 0.1
-#: How far (fraction of the long side) the object may reach beyond the learned segmenter's
-#: own object (it sees the photo at 96 px: thin parts and edges blur away).
+#: How far (fraction of the long side) a seed region may lie from the learned segmenter's
+#: object and still count as part of it (it sees the photo at 96 px: edges blur away).
 LEARNED_REACH = 0.03
 
 
@@ -101,9 +101,9 @@ def grabcut_segment(image: np.ndarray, iterations: int = 5, object_probability: 
     four borders, which is background the model could not explain). A uniform frame
     around the picture (a print border, a letterbox) is set aside first.
 
-    ``object_probability`` (a learned segmenter's p(object) on the image grid) drops
-    the seeds away from the network's object (blobs) and adds the object the colour cues
-    missed: see :func:`_learned_seeds`.
+    ``object_probability`` (a learned segmenter's p(object) on the image grid) turns
+    seed regions away from the network's object (blobs) into sure background and adds the
+    object the colour cues missed: see :func:`_learned_seeds`.
     """
     rgb = np.ascontiguousarray(image[..., :3], dtype=np.uint8)
     rows, cols = _inside_frame(rgb)
@@ -247,20 +247,19 @@ def _initial_labels(lab: np.ndarray, background: np.ndarray, border_mask: np.nda
 def _learned_seeds(salient: np.ndarray, probability: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The classical seeds corrected by a learned p(object): (probable object, sure background).
 
-    The network sees the photo at low resolution: it knows where the object is, but may
-    miss a part of it (a pick-up's bed of the background's colour) and blurs its edge,
-    while the colour cues know the edge but take blobs for objects. So whole seed regions
-    are kept or dropped: those reaching within :data:`LEARNED_REACH` of the network's
-    object stay (with every pixel, however unlikely to the network), the others go; the
-    network's object (p > 0.5) is added, and what lies beyond that reach, below
-    :data:`LEARNED_UNLIKELY` and outside the kept seeds is sure background.
+    The network sees the photo at low resolution: it knows where the object is, but blurs
+    its edge and misses thin or unusual parts (a tailplane, a pick-up's bed), while the
+    colour cues know the edge but take blobs for objects. So the network only judges whole
+    seed regions: those that do not reach within :data:`LEARNED_REACH` of its object
+    (p >= :data:`LEARNED_UNLIKELY`) become sure background, the others stay whole, and its
+    object (p > 0.5) is added. Everything else is left to GrabCut as without the network.
     """
     reach = max(2, round(LEARNED_REACH * max(probability.shape)))
     disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1,) * 2)
     near_object = cv2.dilate((probability >= LEARNED_UNLIKELY).astype(np.uint8), disc) > 0
     _, labels = cv2.connectedComponents(salient.astype(np.uint8), connectivity=8)
     kept = np.isin(labels, np.unique(labels[salient & near_object])) & salient
-    return kept | (probability > 0.5), ~near_object & ~kept
+    return kept | (probability > 0.5), salient & ~kept
 
 
 def _smoother_than_background(texture: np.ndarray, border_mask: np.ndarray) -> np.ndarray:
