@@ -86,9 +86,14 @@ def load_family_yaml(path: Path, regions: dict[str, tuple[str, ...]]) -> Family:
     """Build a :class:`Family` from a plugin's family.yaml and its template regions.
 
     The yaml holds the family's data (name, view, sizes, settings); the region lists
-    come from the template builders so the two can never disagree.
+    come from the template builders so the two can never disagree. Checkpoints its
+    ``weights`` setting names are shipped with the plugin: relative to the yaml's folder
+    (plugins.toml's, a user's own, stay relative to the working directory).
     """
     data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    settings = dict(data.get("settings", {}))
+    if "weights" in settings:
+        settings["weights"] = {task: str(path.parent / checkpoint) for task, checkpoint in settings["weights"].items()}
     return Family(
         name=data["name"],
         subtypes=tuple(regions),
@@ -96,7 +101,7 @@ def load_family_yaml(path: Path, regions: dict[str, tuple[str, ...]]) -> Family:
         regions={k: tuple(v) for k, v in regions.items()},
         real_size={k: float(v) for k, v in data["real_size"].items()},
         description=data.get("description", ""),
-        settings=dict(data.get("settings", {})),
+        settings=settings,
         view_hint=data.get("view_hint", ""),
     )
 

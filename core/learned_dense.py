@@ -6,8 +6,10 @@ checkpoint layout as the classifiers (:mod:`frontal3d.learned`: task, family, cl
 input size, a reference input whose output is replayed at load).
 
 - ``segmenter``: the whole photo, letterboxed to a square -> p(object) per pixel. The
-  network sees the photo at low resolution, so its answer seeds a short GrabCut (confident
-  pixels fixed, the rest free) that puts the edge on the image's own colour edges.
+  network sees the photo at low resolution: it knows where the object is, not where its
+  edge runs, so its answer corrects the seeds of the classical GrabCut
+  (:func:`frontal3d.stages.segment.grabcut_segment`), which puts the edge on the image's
+  own colour edges.
 - ``regions``: the object crop (object on black plus its mask) -> one probability per
   region of the family's *region set*: every subtype's region names, in first-seen order.
   One network serves all subtypes (they share most regions: body, wheels...), and at
@@ -30,6 +32,7 @@ from frontal3d.learned import (
     DENSE_ARCHITECTURE, DENSE_TASKS, LoadedModel, cached_model, check_family, check_reference, crop_square, cut_square, object_crop, one_line,
     read_checkpoint, to_tensor,
 )
+from frontal3d.stages.segment import grabcut_segment
 
 if TYPE_CHECKING:
     import torch
@@ -40,13 +43,8 @@ DENSE_INPUT_SIZE = 96
 DENSE_WIDTHS = (16, 32, 48, 64)
 #: Classes of the object segmenter, in output order.
 SEGMENTER_CLASSES = ("background", "object")
-#: p(object) above this (below 1 - this) fixes a pixel as object (background) for GrabCut.
-CONFIDENT = 0.9
-#: Long side of the image the GrabCut refinement runs on (speed); the mask is then upsampled.
-REFINE_SIZE = 640
-GRABCUT_ITERATIONS = 3
-#: Pixels (at REFINE_SIZE) on each side of the network's confident areas left for GrabCut to decide.
-EDGE_BAND = 8
+#: p(object) above this somewhere: the network sees an object.
+OBJECT_SEEN = 0.5
 
 
 def family_region_names(family: Family) -> list[str]:
@@ -86,15 +84,19 @@ def dense_probabilities(model: "torch.nn.Module", inputs: np.ndarray) -> np.ndar
 class DenseModel(LoadedModel):
     """A loaded segmenter or region checkpoint."""
 
-    def object_mask(self, image: np.ndarray) -> np.ndarray | None:
-        """The object's mask at the image's resolution, or None when the network sees no object."""
+    def object_probability(self, image: np.ndarray) -> np.ndarray:
+        """p(object) per pixel of the image (float32), upsampled from the network's grid."""
         square, (top, left, side) = letterbox(image, self.input_size)
         probability = dense_probabilities(self.model, square[None])[0, ..., self.classes.index("object")].astype(np.float32)
         height, width = image.shape[:2]
-        probability = cv2.resize(probability, (side, side), interpolation=cv2.INTER_LINEAR)[top : top + height, left : left + width]
-        if not (probability > 0.5).any():
+        return cv2.resize(probability, (side, side), interpolation=cv2.INTER_LINEAR)[top : top + height, left : left + width]
+
+    def object_mask(self, image: np.ndarray) -> np.ndarray | None:
+        """The object's mask at the image's resolution, or None when the network sees no object."""
+        probability = self.object_probability(image)
+        if not (probability > OBJECT_SEEN).any():
             return None
-        return refine_with_grabcut(image[..., :3], probability)
+        return grabcut_segment(image[..., :3], object_probability=probability)
 
     def region_map(self, image: np.ndarray, mask: np.ndarray, region_names: tuple[str, ...] | list[str]) -> np.ndarray:
         """Labels indexing ``region_names`` (a subtype's regions) on the image grid, -1 outside ``mask``."""
@@ -111,25 +113,6 @@ class DenseModel(LoadedModel):
         y1, x1 = min(mask.shape[0], top + side), min(mask.shape[1], left + side)
         on_grid[y0:y1, x0:x1] = full[y0 - top : y1 - top, x0 - left : x1 - left]
         return np.where(mask, on_grid.argmax(axis=-1), -1).astype(np.int32)
-
-
-def refine_with_grabcut(rgb: np.ndarray, probability: np.ndarray) -> np.ndarray:
-    """Snap a low-resolution object probability to the photo's edges: GrabCut with the confident pixels fixed."""
-    height, width = probability.shape
-    scale = min(1.0, REFINE_SIZE / max(height, width))
-    size = (max(1, round(width * scale)), max(1, round(height * scale)))
-    small_rgb = cv2.resize(np.ascontiguousarray(rgb, dtype=np.uint8), size, interpolation=cv2.INTER_AREA)
-    small = cv2.resize(probability, size, interpolation=cv2.INTER_LINEAR)
-    # the network's edge is a few of its pixels wide: leave a band around it free for GrabCut
-    band = np.ones((2 * EDGE_BAND + 1,) * 2, np.uint8)
-    labels = np.where(small >= 0.5, cv2.GC_PR_FGD, cv2.GC_PR_BGD).astype(np.uint8)
-    labels[cv2.erode((small >= CONFIDENT).astype(np.uint8), band) > 0] = cv2.GC_FGD
-    labels[cv2.dilate((small > 1.0 - CONFIDENT).astype(np.uint8), band) == 0] = cv2.GC_BGD
-    if (labels == cv2.GC_FGD).any() and (labels == cv2.GC_BGD).any():
-        background_model, foreground_model = np.zeros((1, 65)), np.zeros((1, 65))
-        cv2.grabCut(small_rgb, labels, None, background_model, foreground_model, GRABCUT_ITERATIONS, cv2.GC_INIT_WITH_MASK)
-    found = np.isin(labels, (cv2.GC_FGD, cv2.GC_PR_FGD)).astype(np.float32)
-    return cv2.resize(found, (width, height), interpolation=cv2.INTER_LINEAR) > 0.5
 
 
 def load_dense(path: Path | str, task: str, family: Family | None = None) -> DenseModel:

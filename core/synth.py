@@ -35,6 +35,11 @@ SCALE_JITTER = 0.15
 BEND_LIMIT = 0.06
 #: Share of non-frontal samples.
 NEGATIVE_FRACTION = 0.5
+#: Fine grain (``grain`` share of the backgrounds): value-noise cells across the image and
+#: largest relative amplitude (paper, fabric, a grainy wall; a segmenter that never saw it
+#: takes grain for an object's texture).
+GRAIN_CELLS = (32, 160)
+GRAIN_AMPLITUDE = (0.05, 0.3)
 #: Regions usually dark in photos (tyres, sound holes): painted dark most of the time.
 DARK_REGIONS = ("hole", "wheels")
 LABEL_COLUMNS = ("file", "family", "subtype", "frontal", "yaw", "pitch")
@@ -54,11 +59,12 @@ class Sample:
 
 
 def synthesize(family: Family, templates: dict[str, Template], count: int, out_dir: Path, seed: int = 0,
-               resolution: int = 256, progress: Callable[[int], None] | None = None) -> Path:
+               resolution: int = 256, progress: Callable[[int], None] | None = None, grain: float = 0.0) -> Path:
     """Write ``count`` samples as images/, masks/, regions/ PNGs and labels.csv; returns the csv path.
 
     Subtypes take turns so every class is equally represented; region PNGs hold the
-    region index + 1 (0 = background).
+    region index + 1 (0 = background). ``grain``: the share of backgrounds that also get
+    fine grain (0, the default, draws nothing more: older data sets stay identical).
     """
     for folder in ("images", "masks", "regions"):
         (out_dir / folder).mkdir(parents=True, exist_ok=True)
@@ -66,7 +72,7 @@ def synthesize(family: Family, templates: dict[str, Template], count: int, out_d
     rows = []
     for index in range(count):
         subtype = subtypes[index % len(subtypes)]
-        sample = render_sample(templates[subtype], np.random.default_rng([seed, index]), resolution)
+        sample = render_sample(templates[subtype], np.random.default_rng([seed, index]), resolution, grain)
         name = f"{index:06d}.png"
         cv2.imwrite(str(out_dir / "images" / name), cv2.cvtColor(sample.image, cv2.COLOR_RGB2BGR))
         cv2.imwrite(str(out_dir / "masks" / name), sample.mask.astype(np.uint8) * 255)
@@ -82,7 +88,7 @@ def synthesize(family: Family, templates: dict[str, Template], count: int, out_d
     return labels
 
 
-def render_sample(template: Template, rng: np.random.Generator, resolution: int) -> Sample:
+def render_sample(template: Template, rng: np.random.Generator, resolution: int, grain: float = 0.0) -> Sample:
     """One randomized photo of ``template`` (see the module docstring for what varies)."""
     frontal = bool(rng.random() >= NEGATIVE_FRACTION)
     yaw, pitch = _view_angles(rng, frontal)
@@ -100,7 +106,7 @@ def render_sample(template: Template, rng: np.random.Generator, resolution: int)
     light = _unit(np.array([rng.uniform(-0.7, 0.7), rng.uniform(-0.7, 0.7), 1.0]))
     shade = rng.uniform(0.1, 0.3) + rng.uniform(0.6, 0.9) * np.clip(normals @ light, 0.0, 1.0)
     rgb = np.clip(albedo * shade[..., None], 0, 255)
-    background = _background(resolution, rng)
+    background = _background(resolution, rng, grain)
     image = np.where(mask[..., None], rgb, background).astype(np.uint8)
     return Sample(image=image, mask=mask, regions=regions.astype(np.int32), subtype=template.subtype, frontal=frontal, yaw=yaw, pitch=pitch)
 
@@ -194,11 +200,16 @@ def smooth_noise(resolution: int, rng: np.random.Generator, cells: int) -> np.nd
     return cv2.resize(coarse, (resolution, resolution), interpolation=cv2.INTER_CUBIC).clip(-1, 1).astype(np.float64)
 
 
-def _background(resolution: int, rng: np.random.Generator) -> np.ndarray:
-    """A gradient between two random colours, with value noise and random soft blobs."""
+def _background(resolution: int, rng: np.random.Generator, grain: float = 0.0) -> np.ndarray:
+    """A gradient between two random colours, with value noise and random soft blobs, and,
+    for a ``grain`` share of them, fine grain on top (drawn last, so the rest is unchanged)."""
     background = random_gradient(resolution, rng)
     background *= 1 + 0.2 * smooth_noise(resolution, rng, cells=rng.integers(3, 32))[..., None]
-    return soft_blobs(background, rng, int(rng.integers(0, 6)))
+    background = soft_blobs(background, rng, int(rng.integers(0, 6)))
+    if grain > 0 and rng.random() < grain:
+        amplitude = rng.uniform(*GRAIN_AMPLITUDE)
+        background = np.clip(background * (1 + amplitude * smooth_noise(resolution, rng, cells=rng.integers(*GRAIN_CELLS))[..., None]), 0, 255)
+    return background
 
 
 def random_gradient(resolution: int, rng: np.random.Generator) -> np.ndarray:

@@ -60,7 +60,8 @@ def test_evaluate_masks_scores_every_render_over_each_background(tmp_path, capsy
     renders = tmp_path / "renders"
     _write_renders(renders)
     out = tmp_path / "out"
-    assert main(["evaluate-masks", "--family", "guitar", "--renders", str(renders), "--backgrounds", "plain,gradient", "--every", "2", "-o", str(out), "-v"]) == 0
+    assert main(["evaluate-masks", "--family", "guitar", "--renders", str(renders), "--backgrounds", "plain,gradient", "--every", "2",
+                 "--set", "weights={}", "-o", str(out), "-v"]) == 0  # the training-free chain alone
     with (out / "masks.csv").open() as handle:
         rows = list(csv.DictReader(handle))
     # every second render (r0, r2) over two backgrounds

@@ -74,6 +74,21 @@ def test_synth_writes_consistent_images_masks_regions_and_labels_deterministical
     assert (tmp_path / "c" / "images" / "000000.png").read_bytes() != (first / "images" / "000000.png").read_bytes()
 
 
+def test_synth_grain_adds_fine_texture_to_backgrounds_and_nothing_else(tmp_path):
+    plain, grainy = tmp_path / "plain", tmp_path / "grainy"
+    _synth(plain, 8, resolution=128)
+    assert main(["synth", "--family", "car", "-n", "8", "-o", str(grainy), "--seed", "5", "--resolution", "128", "--grain", "1"]) == 0
+    assert main(["synth", "--family", "car", "-n", "1", "-o", str(tmp_path / "bad"), "--grain", "1.5"]) == 2
+    for index in range(8):
+        (image, mask), (grained, same_mask) = _sample(plain, index), _sample(grainy, index)
+        np.testing.assert_array_equal(mask, same_mask)
+        np.testing.assert_array_equal(image[mask], grained[mask])  # the object is untouched
+        def fine(picture):  # detail finer than 3 px on the background
+            grey = cv2.cvtColor(picture, cv2.COLOR_RGB2GRAY).astype(np.float32)
+            return np.abs(grey - cv2.GaussianBlur(grey, (0, 0), 3))[~mask].mean()
+        assert fine(grained) > fine(image)
+
+
 def test_trained_checkpoint_loads_and_reproduces_its_stored_prediction(trained):
     stored = torch.load(trained["subtype"], weights_only=True)
     model = load_classifier(trained["subtype"], "subtype", Plugins().family("car"))

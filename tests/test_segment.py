@@ -273,3 +273,39 @@ def test_grabcut_finds_a_grey_green_airplane_on_strongly_textured_grass():
     found = grabcut_segment(image)
     assert found is not None
     assert _iou(found, truth) > 0.9
+
+
+def _network_like_probability(truth: np.ndarray, size: int = 96) -> np.ndarray:
+    """What a small learned segmenter gives: the true mask seen at ``size`` px, blurred, upsampled."""
+    h, w = truth.shape
+    scale = size / max(h, w)
+    small = cv2.resize(truth.astype(np.float32), (max(1, round(w * scale)), max(1, round(h * scale))), interpolation=cv2.INTER_AREA)
+    return cv2.resize(cv2.GaussianBlur(small, (0, 0), 1.0), (w, h), interpolation=cv2.INTER_LINEAR)
+
+
+def test_a_learned_probability_seeds_an_object_the_colour_cues_lost():
+    image, truth = _airplane_over_colour_spots(np.random.default_rng(0))
+    alone = split_objects(grabcut_segment(image))[0]
+    seeded = grabcut_segment(image, object_probability=_network_like_probability(truth))
+    assert _iou(alone, truth) < 0.6
+    assert seeded is not None and _iou(seeded, truth) > 0.88  # the tailplane, 3 px wide at 96 px, stays lost
+
+
+def test_a_learned_probability_keeps_a_separate_coloured_blob_out():
+    rng = np.random.default_rng(9)
+    shape = (480, 640)
+    truth = np.zeros(shape, np.uint8)
+    cv2.rectangle(truth, (120, 250), (420, 330), 1, -1)
+    cv2.rectangle(truth, (190, 200), (350, 260), 1, -1)
+    truth = truth > 0
+    background = np.full(shape + (3,), (205.0, 210, 200))
+    blob = np.zeros(shape, np.float32)
+    cv2.ellipse(blob, (540, 130), (70, 50), 30, 0, 360, 1.0, -1)
+    blob = cv2.GaussianBlur(blob, (0, 0), 3)[..., None]
+    background = background * (1 - blob) + blob * np.array([40.0, 60, 170])
+    image = _composite(background, truth, (170, 40, 35), rng)
+    alone = grabcut_segment(image)
+    seeded = grabcut_segment(image, object_probability=_network_like_probability(truth))
+    assert (alone & (blob[..., 0] > 0.5)).sum() > 1000  # the colour cues take the blob for an object too
+    assert seeded is not None and not (seeded & (blob[..., 0] > 0.5)).any()
+    assert _iou(seeded, truth) > 0.97

@@ -61,6 +61,11 @@ OBJECT_LIKENESS = 2.0
 MAX_FILLED_HOLE = 0.01
 #: Below this fraction of the image, what GrabCut found is noise, not an object.
 MIN_FOREGROUND = 0.01
+#: A learned p(object) from this up marks the network's object, at its widest.
+LEARNED_UNLIKELY = 0.1
+#: How far (fraction of the long side) a seed region may lie from the learned segmenter's
+#: object and still count as part of it (it sees the photo at 96 px: edges blur away).
+LEARNED_REACH = 0.03
 
 
 def mask_from_alpha(image: np.ndarray) -> np.ndarray | None:
@@ -84,7 +89,7 @@ def split_objects(mask: np.ndarray) -> list[np.ndarray]:
     return [labels == (i + 1) for i in order if areas[i] >= floor]
 
 
-def grabcut_segment(image: np.ndarray, iterations: int = 5) -> np.ndarray | None:
+def grabcut_segment(image: np.ndarray, iterations: int = 5, object_probability: np.ndarray | None = None) -> np.ndarray | None:
     """Segment the object(s) in front of a plain, graded or mildly cluttered background.
 
     A smooth background (a low-order polynomial per Lab channel, fitted robustly from
@@ -95,10 +100,15 @@ def grabcut_segment(image: np.ndarray, iterations: int = 5) -> np.ndarray | None
     nothing object-like stands out (under 1 % of the image, or a region touching all
     four borders, which is background the model could not explain). A uniform frame
     around the picture (a print border, a letterbox) is set aside first.
+
+    ``object_probability`` (a learned segmenter's p(object) on the image grid) turns
+    seed regions away from the network's object (blobs) into sure background and adds the
+    object the colour cues missed: see :func:`_learned_seeds`.
     """
     rgb = np.ascontiguousarray(image[..., :3], dtype=np.uint8)
     rows, cols = _inside_frame(rgb)
-    inner = _segment_unframed(np.ascontiguousarray(rgb[rows, cols]), iterations)
+    probability = None if object_probability is None else np.asarray(object_probability, np.float32)[rows, cols]
+    inner = _segment_unframed(np.ascontiguousarray(rgb[rows, cols]), iterations, probability)
     if inner is None:
         return None
     mask = np.zeros(rgb.shape[:2], bool)
@@ -106,7 +116,7 @@ def grabcut_segment(image: np.ndarray, iterations: int = 5) -> np.ndarray | None
     return mask
 
 
-def _segment_unframed(rgb: np.ndarray, iterations: int) -> np.ndarray | None:
+def _segment_unframed(rgb: np.ndarray, iterations: int, probability: np.ndarray | None = None) -> np.ndarray | None:
     """:func:`grabcut_segment` on a picture whose border is its background."""
     height, width = rgb.shape[:2]
     scale = min(1.0, GRABCUT_SIZE / max(height, width))
@@ -116,7 +126,8 @@ def _segment_unframed(rgb: np.ndarray, iterations: int) -> np.ndarray | None:
     border = _border_mask(small.shape[:2])
     background = _smooth_background(lab, border)
     flattened = np.clip(lab - background + background[border].mean(axis=0), 0, 255).astype(np.uint8)
-    init = _initial_labels(lab, background, border)
+    small_probability = None if probability is None else cv2.resize(probability, small_size, interpolation=cv2.INTER_LINEAR)
+    init = _initial_labels(lab, background, border, small_probability)
     if init is None:
         return None
     _grabcut(flattened, init, iterations)
@@ -182,7 +193,7 @@ def _smooth_background(lab: np.ndarray, border: np.ndarray) -> np.ndarray:
     return (basis @ coefficients.astype(np.float32)).reshape(lab.shape)
 
 
-def _initial_labels(lab: np.ndarray, background: np.ndarray, border_mask: np.ndarray) -> np.ndarray | None:
+def _initial_labels(lab: np.ndarray, background: np.ndarray, border_mask: np.ndarray, probability: np.ndarray | None = None) -> np.ndarray | None:
     """GrabCut's initial label map; None when no pixel differs from the background.
 
     Probable foreground: what the background model cannot explain (weak differences
@@ -219,15 +230,36 @@ def _initial_labels(lab: np.ndarray, background: np.ndarray, border_mask: np.nda
     salient = np.zeros_like(different)
     for component in split_objects(candidates):
         salient |= component
+    sure_background = np.zeros_like(salient)
+    if probability is not None:
+        salient, sure_background = _learned_seeds(salient, probability)
     init = np.full(lab.shape[:2], cv2.GC_PR_BGD, np.uint8)
     reach = max(3, round(SEED_REACH * max(lab.shape[:2])))
     near = cv2.dilate(salient.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1,) * 2)) > 0
-    init[~near] = cv2.GC_BGD
+    init[~near | sure_background] = cv2.GC_BGD
     init[salient] = cv2.GC_PR_FGD
     init[border_mask] = cv2.GC_BGD
     if (init == cv2.GC_PR_FGD).mean() < MIN_FOREGROUND / 2:
         return None
     return init
+
+
+def _learned_seeds(salient: np.ndarray, probability: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The classical seeds corrected by a learned p(object): (probable object, sure background).
+
+    The network sees the photo at low resolution: it knows where the object is, but blurs
+    its edge and misses thin or unusual parts (a tailplane, a pick-up's bed), while the
+    colour cues know the edge but take blobs for objects. So the network only judges whole
+    seed regions: those that do not reach within :data:`LEARNED_REACH` of its object
+    (p >= :data:`LEARNED_UNLIKELY`) become sure background, the others stay whole, and its
+    object (p > 0.5) is added. Everything else is left to GrabCut as without the network.
+    """
+    reach = max(2, round(LEARNED_REACH * max(probability.shape)))
+    disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1,) * 2)
+    near_object = cv2.dilate((probability >= LEARNED_UNLIKELY).astype(np.uint8), disc) > 0
+    _, labels = cv2.connectedComponents(salient.astype(np.uint8), connectivity=8)
+    kept = np.isin(labels, np.unique(labels[salient & near_object])) & salient
+    return kept | (probability > 0.5), salient & ~kept
 
 
 def _smoother_than_background(texture: np.ndarray, border_mask: np.ndarray) -> np.ndarray:
