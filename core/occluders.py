@@ -33,8 +33,9 @@ log = logging.getLogger("frontal3d")
 
 #: Long side (px) the models see; they work at 256 px internally, more only costs time.
 DETECTION_SIDE = 512
-#: Selfie-segmentation probability above which a pixel belongs to a person.
+#: Selfie-segmentation probability above which a pixel belongs to a person, and above which it surely does.
 PERSON_PROBABILITY = 0.5
+CONFIDENT_PERSON_PROBABILITY = 0.9
 #: Share of the image that must be confidently (p > 0.9) a person before the pose model
 #: runs: images without people skip its cost (about 1 s to load, 20 ms a call). Hands are
 #: looked for on every image, as a close-up hand is often not segmented as a person.
@@ -45,6 +46,16 @@ MIN_VISIBILITY = 0.5
 ARM_BAND_WIDTH = 0.45
 #: Hands: the landmarks' hull is grown by this fraction of the hand's size (landmarks sit on the joints).
 HAND_MARGIN = 0.15
+
+#: With neither a pose nor a face, the segmenter alone vouches for a person when it is sure of
+#: pixels farther than OFF_OBJECT_REACH of the object's size from it, together at least
+#: OFF_OBJECT_SHARE of the object's area. On a plain guitar it fires on the body and spills a
+#: few pixels past its edge (none that far on the shared renders); a person beside or behind
+#: a guitar has most of a torso there (the cameraman in profile, whom pose and face miss).
+#: It is as sure of some soft blobs in cluttered backgrounds: those become people too, and
+#: only count where the placed template says they hide the object (occlusion.in_front).
+OFF_OBJECT_REACH = 0.05
+OFF_OBJECT_SHARE = 0.1
 
 #: How far (fraction of the image's long side) from a found arm or hand the person's own
 #: pixels off the object are added to it.
@@ -86,7 +97,9 @@ def detect_people(image: np.ndarray, object_mask: np.ndarray | None = None) -> n
 
     The segmenter alone also fires on plain objects (a guitar's body), so a person needs a
     pose, or a face that is mostly the person's pixels off ``object_mask`` (the pose
-    model misses people in profile, cut by the frame or half hidden behind the object).
+    model misses people in profile, cut by the frame or half hidden behind the object), or
+    failing both a large stretch of person the segmenter is sure of well off the object
+    (see OFF_OBJECT_SHARE).
     Whether a person stands in front of the object or behind it is not decided here:
     the occlusion stage keeps the pixels that reach into the aligned template (a torso
     in front of a guitar) and drops the others (a guitarist's body behind it).
@@ -100,7 +113,8 @@ def detect_people(image: np.ndarray, object_mask: np.ndarray | None = None) -> n
         if pose_result is None:
             return None
         person = probability > PERSON_PROBABILITY
-        if pose_result.pose_landmarks is None and not _face_off_object(models, small, person, object_mask):
+        if (pose_result.pose_landmarks is None and not _face_off_object(models, small, person, object_mask)
+                and not _sure_person_off_object(probability, object_mask)):
             return None
     return cv2.resize(person.astype(np.uint8), (width, height), interpolation=cv2.INTER_NEAREST) > 0
 
@@ -122,6 +136,20 @@ def _face_off_object(models: _Models, small: np.ndarray, person: np.ndarray, obj
     return False
 
 
+def _sure_person_off_object(probability: np.ndarray, object_mask: np.ndarray | None) -> bool:
+    """Whether the segmenter is sure of enough person pixels well away from the object (OFF_OBJECT_SHARE)."""
+    if object_mask is None:
+        return False
+    height, width = probability.shape
+    on_object = cv2.resize(np.asarray(object_mask, np.uint8), (width, height), interpolation=cv2.INTER_NEAREST) > 0
+    rows, cols = np.nonzero(on_object)
+    if len(rows) == 0:
+        return False
+    reach = max(1, round(OFF_OBJECT_REACH * (max(np.ptp(rows), np.ptp(cols)) + 1)))
+    near = cv2.dilate(on_object.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1,) * 2)) > 0
+    return np.count_nonzero((probability > CONFIDENT_PERSON_PROBABILITY) & ~near) >= OFF_OBJECT_SHARE * len(rows)
+
+
 def _detection_image(image: np.ndarray) -> tuple[np.ndarray, tuple[int, int]]:
     """The RGB image at most DETECTION_SIDE on its long side, and the original (height, width)."""
     rgb = np.ascontiguousarray(image[..., :3], dtype=np.uint8)
@@ -140,7 +168,7 @@ def _person_and_pose(models: _Models, small: np.ndarray) -> tuple[np.ndarray, An
     key = hashlib.sha1(small.tobytes()).hexdigest() + str(small.shape)
     if _last_inference.get("models") is not models or _last_inference.get("key") != key:
         probability = models.segmenter.process(small).segmentation_mask
-        confident = (probability > 0.9).mean() >= MIN_CONFIDENT_PERSON_SHARE
+        confident = (probability > CONFIDENT_PERSON_PROBABILITY).mean() >= MIN_CONFIDENT_PERSON_SHARE
         _last_inference.update(models=models, key=key, answer=(probability, models.pose.process(small) if confident else None))
     return _last_inference["answer"]
 

@@ -136,7 +136,9 @@ def reconstruct(
         with report.stage(f"segment[{fam.name}]" if len(candidates) > 1 else "segment", progress):
             object_mask, occluders = segment_object(plugins, rgb, fam, fam_settings, user_mask, user_occluders, subtype, report)
             if index == 0:
-                people = people_detector.detect_people(rgb, object_mask)
+                # What the user marked as occluders is explained already: a painted arm the
+                # segmenter takes for a person must not vouch for one (see occluders.OFF_OBJECT_SHARE).
+                people = people_detector.detect_people(rgb, object_mask if user_occluders is None else object_mask | user_occluders)
             touching = _touching(occluders, object_mask)
             # People touching the object may stand in front of it or behind it: the template
             # placed on the object tells which, here for the classifiers and the alignment,

@@ -394,9 +394,10 @@ def test_a_face_off_the_object_vouches_for_a_person_the_pose_model_misses(monkey
     def solution(result):
         return SimpleNamespace(process=lambda image: result)
 
-    def models(face_box):
+    def models(face_box, person_probability=0.95):
         box = SimpleNamespace(xmin=face_box[0] / 120, ymin=face_box[1] / 120, width=face_box[2] / 120, height=face_box[3] / 120)
-        return _Models(segmenter=solution(SimpleNamespace(segmentation_mask=np.where(person | guitar, 0.95, 0.0).astype(np.float32))),
+        probability = np.where(guitar, 0.95, np.where(person, person_probability, 0.0))
+        return _Models(segmenter=solution(SimpleNamespace(segmentation_mask=probability.astype(np.float32))),
                        pose=solution(SimpleNamespace(pose_landmarks=None)), hands=None,
                        faces=solution(SimpleNamespace(detections=[SimpleNamespace(location_data=SimpleNamespace(relative_bounding_box=box))])))
 
@@ -404,8 +405,33 @@ def test_a_face_off_the_object_vouches_for_a_person_the_pose_model_misses(monkey
     monkeypatch.setattr(occluders, "_load_models", lambda: models((20, 15, 25, 25)))  # on the person's head
     found = detect_people(image, guitar)
     assert found is not None and found[person].all()
-    monkeypatch.setattr(occluders, "_load_models", lambda: models((72, 55, 25, 25)))  # on the guitar's body
+    # On the guitar's body, with the segmenter unsure of the person (sure of them, it alone would vouch).
+    monkeypatch.setattr(occluders, "_load_models", lambda: models((72, 55, 25, 25), person_probability=0.7))
     assert detect_people(image, guitar) is None
+
+
+def test_a_person_the_segmenter_is_sure_of_well_off_the_object_needs_no_pose_or_face(monkeypatch):
+    """The cameraman in profile beside a guitar: no pose, no face, but a torso the segmenter is
+    sure of off the object. The segmenter firing on the guitar alone (spilling past its edge),
+    or only unsure of the torso, finds nobody."""
+    guitar = _ellipse((240, 240), (170, 140), (40, 80))
+    torso = np.zeros((240, 240), bool)
+    torso[60:240, 30:110] = True
+    spill = cv2.dilate(guitar.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+
+    def models(probability):
+        return _Models(segmenter=SimpleNamespace(process=lambda image: SimpleNamespace(segmentation_mask=probability.astype(np.float32))),
+                       pose=SimpleNamespace(process=lambda image: SimpleNamespace(pose_landmarks=None)), hands=None)
+
+    image = np.full((240, 240, 3), 40, np.uint8)
+    monkeypatch.setattr(occluders, "_load_models", lambda: models(np.where(torso | guitar, 0.95, 0.0)))
+    found = detect_people(image, guitar)
+    assert found is not None and found[torso].all()
+    for n, probability in enumerate((np.where(spill, 0.95, 0.0), np.where(guitar, 0.95, np.where(torso, 0.7, 0.0)))):
+        image[0, 0] = 41 + n  # a new image each time: the last segmentation is not reused
+        monkeypatch.setattr(occluders, "_load_models", lambda: models(probability))
+        assert detect_people(image, guitar) is None
+    assert detect_people(image) is None  # without the object's mask nothing tells a plain object from a person
 
 
 def test_only_people_reaching_into_the_template_stand_in_front():
