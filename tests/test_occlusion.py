@@ -475,3 +475,41 @@ def test_a_person_beside_the_object_does_not_count_against_the_front_view():
     assert not FrontalGate().classify(plain).accepted  # agreement x foreshortening 0.47
     assert FrontalGate().classify(beside_person).accepted  # 0.77
     assert beside_person.agreement()["electric"].iou == pytest.approx(plain.agreement()["electric"].iou)
+
+
+class _StopAfterPeople(Exception):
+    pass
+
+
+def test_what_the_user_marks_as_occluders_does_not_vouch_for_a_person(monkeypatch):
+    """A painted arm reaching in from the border, given with --occluder-mask: the person segmenter
+    may be sure of it, but the user has explained those pixels, so they must not make a person
+    (who would then be taken out of the view checks). Without the user's mask they would."""
+    image = cv2.cvtColor(cv2.imread(str(EXAMPLES / "sportscar.png"), cv2.IMREAD_UNCHANGED), cv2.COLOR_BGRA2RGBA)
+    height, width = image.shape[:2]
+    arm = _arm((height, width), (int(0.55 * width), height - 1), (int(0.55 * width), int(0.55 * height)), int(0.08 * width))
+    image[arm, :3] = SKIN
+    object_mask = (image[..., 3] > 127) & ~arm
+    sure_of_the_arm = np.where(arm, 0.95, 0.0).astype(np.float32)
+
+    def segmentation(small: np.ndarray) -> SimpleNamespace:
+        return SimpleNamespace(segmentation_mask=cv2.resize(sure_of_the_arm, small.shape[1::-1], interpolation=cv2.INTER_NEAREST))
+
+    monkeypatch.setattr(occluders, "_load_models", lambda: _Models(
+        segmenter=SimpleNamespace(process=segmentation),
+        pose=SimpleNamespace(process=lambda small: SimpleNamespace(pose_landmarks=None)),
+        hands=SimpleNamespace(process=lambda small: SimpleNamespace(multi_hand_landmarks=None))))
+    found = {}
+
+    def detect_and_stop(rgb, mask=None):
+        found["people"] = detect_people(rgb, mask)
+        raise _StopAfterPeople
+
+    monkeypatch.setattr(occluders, "detect_people", detect_and_stop)
+    with pytest.raises(_StopAfterPeople):
+        frontal3d.reconstruct(image[..., :3], "car", mask=object_mask, occluder_mask=arm)
+    assert found["people"] is None
+    image[0, 0, 0] ^= 1  # another image: the detector's last answer is not reused
+    with pytest.raises(_StopAfterPeople):
+        frontal3d.reconstruct(image[..., :3], "car", mask=object_mask)
+    assert found["people"] is not None and found["people"][arm & ~object_mask].mean() > 0.9
