@@ -84,9 +84,12 @@ class ClassifierContext:
     def agreement(self) -> dict[str, Agreement]:
         """Per subtype: IoU with the aligned template and the template -> image similarity."""
         if self._agreement is None:
-            max_angle = np.deg2rad(float(self.settings.get("max_angle_deg", 180.0)))
-            self._agreement = silhouette_agreement(self.object_mask, self.renders, max_angle)
+            self._agreement = silhouette_agreement(self.object_mask, self.renders, self.max_angle())
         return self._agreement
+
+    def max_angle(self) -> float:
+        """In-plane rotation (radians, either way) the template placements search."""
+        return float(np.deg2rad(float(self.settings.get("max_angle_deg", 180.0))))
 
     def view_agreement(self) -> dict[str, Agreement]:
         """The agreement the frontal gate judges the view by (the same unless a context hides more from it)."""
@@ -106,16 +109,20 @@ class ClassifierContext:
     def mirror_evidence(self) -> MirrorEvidence:
         """Mirror symmetry of the outline vs the best-agreeing template's, about that template's axis."""
         if self._mirror_evidence is None:
-            best, found = max(self.agreement().items(), key=lambda item: item[1].iou)
+            best, found = self._best_agreement()
             self._mirror_evidence = mirror_evidence(self.object_mask, self.renders[best], found.similarity)
         return self._mirror_evidence
 
     def parallax_evidence(self) -> ParallaxEvidence:
         """How far the neck sits off the body's midline, in the best-agreeing template's frame."""
         if self._parallax_evidence is None:
-            best, found = max(self.agreement().items(), key=lambda item: item[1].iou)
+            best, found = self._best_agreement()
             self._parallax_evidence = parallax_evidence(self.object_mask, self.renders[best], found.similarity)
         return self._parallax_evidence
+
+    def _best_agreement(self) -> tuple[str, Agreement]:
+        """The subtype whose placed template overlaps the outline most, and its agreement."""
+        return max(self.agreement().items(), key=lambda item: item[1].iou)
 
 
 class Classifier(Protocol):

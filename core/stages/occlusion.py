@@ -135,8 +135,7 @@ class VisibleAgreementContext(ClassifierContext):
 
     def agreement(self) -> dict[str, Agreement]:
         if self._agreement is None:
-            max_angle = np.deg2rad(float(self.settings.get("max_angle_deg", 180.0)))
-            placed = silhouette_agreement(self.object_mask, self.renders, max_angle, hidden=self.hidden)
+            placed = silhouette_agreement(self.object_mask, self.renders, self.max_angle(), hidden=self.hidden)
             self._agreement = self._seen(placed, self.hidden)
         return self._agreement
 
