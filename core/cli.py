@@ -135,6 +135,7 @@ def _parser() -> argparse.ArgumentParser:
     source.add_argument("--synth", type=Path, help="a `frontal3d synth` folder instead: judge its samples by their frontal/turned labels")
     p.add_argument("--subtype", help="judge against this subtype's template only")
     p.add_argument("--renders", type=Path, help="also judge these given frontal renders (<id>.png, _mask.png, .json), e.g. the shared renders")
+    p.add_argument("--labels", type=Path, help="CSV of true subtypes (id,family,subtype) to score the subtype picked on accepted 0 deg views, e.g. docs/shared_subtypes.csv; --synth samples carry their own")
     p.add_argument("--angles", default="0,10,30,45,60,90", help="turns in degrees, comma-separated (default: 0,10,30,45,60,90)")
     p.add_argument("--resolution", type=int, default=256, help="side of the rendered views (default: 256)")
     p.add_argument("--limit", type=int, help="only the first N meshes")
@@ -346,7 +347,7 @@ def _cmd_evaluate_masks(args: argparse.Namespace) -> int:
 
 
 def _cmd_evaluate_gate(args: argparse.Namespace) -> int:
-    from frontal3d.eval_gate import evaluate_gate, evaluate_gate_on_synth
+    from frontal3d.eval_gate import evaluate_gate, evaluate_gate_on_synth, read_subtype_labels
     from frontal3d.progress import counter
 
     try:
@@ -363,10 +364,11 @@ def _cmd_evaluate_gate(args: argparse.Namespace) -> int:
         print("\n".join(summary.lines()))
         print(f"wrote {args.out}/gate.csv, summary.txt")
         return 0
+    labels = read_subtype_labels(args.labels, plugins.family(args.family)) if args.labels else None
     meshes = len(sorted(args.meshes.glob("*.glb"))[: args.limit])
     with counter(meshes, "mesh") as bar:
         _, summary = evaluate_gate(plugins, args.family, args.meshes, args.out, angles, args.resolution, args.limit,
-                                   _parse_sets(args.set), args.renders, args.subtype, progress=bar.update)
+                                   _parse_sets(args.set), args.renders, args.subtype, progress=bar.update, labels=labels)
     print("\n".join(summary.lines()))
     print(f"wrote {args.out}/gate.csv, summary.txt")
     return 0

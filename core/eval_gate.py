@@ -10,10 +10,15 @@ rejected; in between (10-30°) nothing is expected and nothing is scored.
 
 :func:`evaluate_gate_on_synth` judges ``frontal3d synth`` samples the same way, by their
 frontal / turned labels: the held-out synthetic figures the gate's margins are chosen on.
+
+Both also score the subtype the chain picks on the frontal views it accepts: synthetic
+samples by their own labels, meshes by a labels file (``id,family,subtype``; the shared
+meshes' hand labels ship as ``docs/shared_subtypes.csv``).
 """
 
 from __future__ import annotations
 
+import csv
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
@@ -37,7 +42,7 @@ TURNED_FROM_DEG = 30.0
 DEFAULT_ANGLES = (0.0, 10.0, 30.0, 45.0, 60.0, 90.0)
 #: Side of the rendered square views (the classifiers compare masks at 128 px).
 DEFAULT_RESOLUTION = 256
-CSV_FIELDS = ("id", "axis", "degrees", "accepted", "label", "confidence", "seconds", "reason")
+CSV_FIELDS = ("id", "axis", "degrees", "accepted", "label", "confidence", "subtype", "true_subtype", "seconds", "reason")
 #: Synthetic samples add their label (1 = frontal) and judge turns by the larger of yaw and pitch.
 SYNTH_CSV_FIELDS = CSV_FIELDS + ("frontal",)
 
@@ -51,6 +56,7 @@ class GateSummary:
     balanced_0: float  # 0° (accept) vs >= 30° (reject)
     balanced_10: float  # 0° and ±10° vs >= 30°
     renders_accepted: tuple[int, int] | None = None  # (accepted, scored) of the given frontal renders
+    subtype_right: tuple[int, int] | None = None  # (right, scored) over accepted, labelled frontal views
 
     def lines(self) -> list[str]:
         out = [f"{degrees:>4.0f}°: accepted {self.accept_rate[degrees]:.3f} of {self.count[degrees]}"
@@ -61,6 +67,7 @@ class GateSummary:
         out.append(f"balanced accuracy 0° vs >= {TURNED_FROM_DEG:.0f}°: {self.balanced_0:.3f}")
         if not np.isnan(self.balanced_10):
             out.append(f"balanced accuracy 0-{FRONTAL_LIMIT_DEG:.0f}° vs >= {TURNED_FROM_DEG:.0f}°: {self.balanced_10:.3f}")
+        out.extend(_subtype_lines(self.subtype_right))
         return out
 
 
@@ -87,13 +94,16 @@ def views(angles: Iterable[float]) -> list[tuple[str, float]]:
 def evaluate_gate(plugins: Plugins, family: str, meshes_dir: Path, out_dir: Path | None = None,
                   angles: Iterable[float] = DEFAULT_ANGLES, resolution: int = DEFAULT_RESOLUTION,
                   limit: int | None = None, settings: dict | None = None, renders_dir: Path | None = None,
-                  subtype: str | None = None, progress: Callable[[int], None] | None = None) -> tuple[list[dict], GateSummary]:
+                  subtype: str | None = None, progress: Callable[[int], None] | None = None,
+                  labels: dict[str, str] | None = None) -> tuple[list[dict], GateSummary]:
     """Judge every ``*.glb`` of ``meshes_dir`` turned by each angle; writes ``gate.csv`` into ``out_dir`` when given.
 
     With ``renders_dir`` (``<id>.png``, ``<id>_mask.png``, ``<id>.json``, as in the shared data), each
     mesh's given frontal render is judged too (axis ``render`` in the rows, counted
     apart from the rendered turns): the cost of a stricter gate on other renderings.
     ``subtype`` judges against that subtype's template only (as ``reconstruct --subtype``).
+    ``labels`` (mesh id -> true subtype, :func:`read_subtype_labels`) scores the subtype
+    picked on the accepted 0° views and given renders.
     """
     fam = plugins.family(family)
     paths = sorted(Path(meshes_dir).glob("*.glb"))[:limit]
@@ -105,10 +115,13 @@ def evaluate_gate(plugins: Plugins, family: str, meshes_dir: Path, out_dir: Path
         mesh = load_coloured_mesh(path)
         for axis, degrees in views(angles):
             image, mask, _ = render_frontal(turned(mesh, axis, degrees), resolution)
-            rows.append(_judged(plugins, fam, fam_settings, subtype, image, mask) | {"id": path.stem, "axis": axis, "degrees": degrees})
+            true_subtype = (labels or {}).get(path.stem, "") if degrees == 0 else ""
+            rows.append(_judged(plugins, fam, fam_settings, subtype, image, mask)
+                        | {"id": path.stem, "axis": axis, "degrees": degrees, "true_subtype": true_subtype})
         if renders_dir is not None:
             image, mask, _ = load_render(Path(renders_dir), path.stem)
-            rows.append(_judged(plugins, fam, fam_settings, subtype, image, mask) | {"id": path.stem, "axis": "render", "degrees": 0.0})
+            rows.append(_judged(plugins, fam, fam_settings, subtype, image, mask)
+                        | {"id": path.stem, "axis": "render", "degrees": 0.0, "true_subtype": (labels or {}).get(path.stem, "")})
         if progress:
             progress(1)
     summary = summarize(rows)
@@ -125,6 +138,7 @@ class SynthGateSummary:
     frontal_count: int
     turned_rejected: float
     turned_count: int
+    subtype_right: tuple[int, int] | None = None  # (right, scored) over accepted frontal samples
 
     @property
     def balanced(self) -> float:
@@ -133,7 +147,7 @@ class SynthGateSummary:
     def lines(self) -> list[str]:
         return [f"frontal samples (within ±{FRONTAL_LIMIT_DEG:.0f}°): accepted {self.frontal_accepted:.3f} of {self.frontal_count}",
                 f"turned samples: rejected {self.turned_rejected:.3f} of {self.turned_count}",
-                f"balanced accuracy: {self.balanced:.3f}"]
+                f"balanced accuracy: {self.balanced:.3f}"] + _subtype_lines(self.subtype_right)
 
 
 def evaluate_gate_on_synth(plugins: Plugins, family: str, data_dir: Path, out_dir: Path | None = None,
@@ -152,14 +166,15 @@ def evaluate_gate_on_synth(plugins: Plugins, family: str, data_dir: Path, out_di
         image, mask = read_sample(data_dir, label["file"])
         turn = max(abs(float(label["yaw"])), abs(float(label["pitch"])))
         rows.append(_judged(plugins, fam, fam_settings, subtype, image, mask)
-                    | {"id": label["file"], "axis": "synth", "degrees": turn, "frontal": int(label["frontal"])})
+                    | {"id": label["file"], "axis": "synth", "degrees": turn, "frontal": int(label["frontal"]),
+                       "true_subtype": label["subtype"] if int(label["frontal"]) else ""})
         if progress:
             progress(1)
     frontal = [int(row["accepted"]) for row in rows if row["frontal"]]
     turned = [1 - int(row["accepted"]) for row in rows if not row["frontal"]]
     if not frontal or not turned:
         raise InputError(f"{data_dir}: the gate needs both frontal and turned samples (found {len(frontal)} and {len(turned)})")
-    summary = SynthGateSummary(float(np.mean(frontal)), len(frontal), float(np.mean(turned)), len(turned))
+    summary = SynthGateSummary(float(np.mean(frontal)), len(frontal), float(np.mean(turned)), len(turned), subtype_score(rows))
     if out_dir is not None:
         _write(Path(out_dir), rows, SYNTH_CSV_FIELDS, summary.lines())
     return rows, summary
@@ -175,16 +190,17 @@ def _judged(plugins: Plugins, fam: Family, settings: dict, subtype: str | None, 
     """The classifier chain's verdict on one view, as a CSV row (without the view's name)."""
     start = time.perf_counter()
     try:
-        decisions = run_classifiers(plugins, image, mask, fam, settings, subtype)[0]
+        decisions, picked = run_classifiers(plugins, image, mask, fam, settings, subtype)[:2]
         gate = next((d for d in decisions if d.name == "frontal"), decisions[0])
-        row = {"accepted": 1, "label": gate.label, "confidence": round(gate.confidence, 4), "reason": gate.reason}
+        row = {"accepted": 1, "label": gate.label, "confidence": round(gate.confidence, 4), "reason": gate.reason, "subtype": picked}
     except NotFrontalError as rejection:
-        row = {"accepted": 0, "label": "not frontal", "confidence": "", "reason": str(rejection)}
+        row = {"accepted": 0, "label": "not frontal", "confidence": "", "reason": str(rejection), "subtype": ""}
     return row | {"seconds": round(time.perf_counter() - start, 3)}
 
 
 def summarize(rows: list[dict]) -> GateSummary:
     """Acceptance per |turn|; balanced accuracy = mean of the frontal accept rate and the turned reject rate."""
+    subtype_right = subtype_score(rows)
     given = [int(row["accepted"]) for row in rows if row.get("axis") == "render"]
     rows = [row for row in rows if row.get("axis") != "render"]
     by_turn: dict[float, list[int]] = {}
@@ -203,4 +219,43 @@ def summarize(rows: list[dict]) -> GateSummary:
     has_10 = any(0 < d <= FRONTAL_LIMIT_DEG for d in by_turn)
     return GateSummary(accept_rate=rate, count={d: len(v) for d, v in by_turn.items()},
                        balanced_0=balanced(frontal_0), balanced_10=balanced(frontal_10) if has_10 else float("nan"),
-                       renders_accepted=(sum(given), len(given)) if given else None)
+                       renders_accepted=(sum(given), len(given)) if given else None, subtype_right=subtype_right)
+
+
+def subtype_score(rows: list[dict]) -> tuple[int, int] | None:
+    """(right, scored) subtype picks over the accepted rows that carry a true subtype; None if none do.
+
+    Rejected views are left out: the chain picks no subtype for them, and the gate's
+    figures already count them."""
+    scored = [row for row in rows if row.get("true_subtype") and int(row["accepted"])]
+    if not scored:
+        return None
+    return sum(row["subtype"] == row["true_subtype"] for row in scored), len(scored)
+
+
+def _subtype_lines(right: tuple[int, int] | None) -> list[str]:
+    if right is None:
+        return []
+    hits, scored = right
+    return [f"subtype right on accepted frontal views: {hits / scored:.3f} of {scored}"]
+
+
+def read_subtype_labels(path: Path, family: Family) -> dict[str, str]:
+    """Mesh id -> true subtype of ``family`` from a CSV with columns id, family, subtype.
+
+    Rows of other families, and rows with an empty subtype (no fair label), are skipped; a
+    subtype the family does not have is refused, as a typo would silently score 0.
+    """
+    path = Path(path)
+    try:
+        with path.open(newline="") as handle:
+            rows = list(csv.DictReader(handle))
+    except OSError as error:
+        raise InputError(f"cannot read subtype labels {path}: {error.strerror}") from None
+    if rows and not {"id", "family", "subtype"} <= set(rows[0]):
+        raise InputError(f"{path}: expected the columns id, family, subtype")
+    labels = {row["id"]: row["subtype"] for row in rows if row["family"] == family.name and row["subtype"]}
+    unknown = sorted(set(labels.values()) - set(family.subtypes))
+    if unknown:
+        raise InputError(f"{path}: {', '.join(unknown)} is not a subtype of {family.name} ({', '.join(family.subtypes)})")
+    return labels

@@ -10,7 +10,8 @@ import pytest
 import trimesh
 
 from frontal3d.cli import main
-from frontal3d.eval_gate import evaluate_gate, summarize, views
+from frontal3d.errors import InputError
+from frontal3d.eval_gate import evaluate_gate, read_subtype_labels, subtype_score, summarize, views
 from frontal3d.evaluate import render_frontal
 from frontal3d.plugins import Plugins
 from shapes import box_car
@@ -42,15 +43,42 @@ def test_side_view_accepted_and_end_on_views_rejected_with_reasons(meshes, tmp_p
     cv2.imwrite(str(renders / "boxcar.png"), image[..., ::-1])
     cv2.imwrite(str(renders / "boxcar_mask.png"), mask.astype("uint8") * 255)
     rows, summary = evaluate_gate(Plugins(), "car", meshes, tmp_path, angles=(0, 90), resolution=160,
-                                  renders_dir=renders, subtype="sedan")
+                                  renders_dir=renders, subtype="sedan", labels={"boxcar": "suv"})
     by_view = {(r["axis"], r["degrees"]): r for r in rows}
     assert by_view[("yaw", 0.0)]["accepted"] == 1
     assert all(by_view[(axis, sign * 90.0)]["accepted"] == 0 for axis in ("yaw", "pitch") for sign in (1, -1))
     assert all("side view" in by_view[(axis, 90.0)]["reason"] for axis in ("yaw", "pitch"))
     assert summary.balanced_0 == 1.0
     assert summary.renders_accepted == (1, 1)
+    # Judged against the sedan only, the box car labelled SUV is a wrong pick on both frontal views.
+    assert summary.subtype_right == (0, 2)
+    assert any(line.startswith("subtype right on accepted frontal views: 0.000 of 2") for line in summary.lines())
     with (tmp_path / "gate.csv").open() as handle:
-        assert len(list(csv.DictReader(handle))) == 6
+        written = list(csv.DictReader(handle))
+    assert len(written) == 6
+    assert {row["true_subtype"] for row in written if row["degrees"] == "0.0"} == {"suv"}
+    assert {row["true_subtype"] for row in written if row["degrees"] != "0.0"} == {""}
+
+
+def test_subtype_score_counts_accepted_labelled_views_only():
+    rows = [{"accepted": 1, "subtype": "sedan", "true_subtype": "sedan"},
+            {"accepted": 1, "subtype": "suv", "true_subtype": "sports"},
+            {"accepted": 0, "subtype": "", "true_subtype": "sedan"},
+            {"accepted": 1, "subtype": "suv", "true_subtype": ""}]
+    assert subtype_score(rows) == (1, 2)
+    assert subtype_score(rows[2:]) is None
+
+
+def test_subtype_labels_file_keeps_its_family_and_refuses_unknown_subtypes(tmp_path):
+    labels = tmp_path / "labels.csv"
+    labels.write_text("id,family,subtype\na,car,sedan\nb,airplane,fighter\nc,car,\n")
+    car = Plugins().family("car")
+    assert read_subtype_labels(labels, car) == {"a": "sedan"}
+    labels.write_text("id,family,subtype\na,car,limousine\n")
+    with pytest.raises(InputError, match="limousine is not a subtype of car"):
+        read_subtype_labels(labels, car)
+    with pytest.raises(InputError, match="cannot read subtype labels"):
+        read_subtype_labels(tmp_path / "missing.csv", car)
 
 
 def test_summary_balances_frontal_acceptance_against_turned_rejection():
@@ -82,6 +110,11 @@ def test_synth_mode_scores_samples_by_their_labels(tmp_path, capsys):
     assert f"accepted 1.000 of {frontal}\n" in printed and f"of {len(labels) - frontal}\n" in printed
     # The car's own template, perturbed and seen within ±10°, is a side view to the gate.
     assert all(row["accepted"] == "1" for row in rows if row["frontal"] == "1")
+    # ... and the subtype picked on it is scored against the sample's own label.
+    with (data / "labels.csv").open() as handle:
+        truth = {row["file"]: row["subtype"] for row in csv.DictReader(handle) if row["frontal"] == "1"}
+    right = sum(row["subtype"] == truth[row["id"]] for row in rows if row["id"] in truth)
+    assert f"subtype right on accepted frontal views: {right / frontal:.3f} of {frontal}\n" in printed
 
 
 def test_synth_mode_refuses_another_familys_samples(tmp_path, capsys):
