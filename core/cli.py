@@ -143,6 +143,14 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--out", type=Path, default=Path("frontal3d-gate"), help="output folder (default: ./frontal3d-gate)")
     p.set_defaults(run=_cmd_evaluate_gate)
 
+    p = sub.add_parser("evaluate-regions", help="measure the inner-region segmentation on synthetic samples", description="Reconstruct each frontal sample of a `frontal3d synth` folder with its true mask and subtype, and compare the region map on the working grid with the sample's true one: mean IoU per sample and per region (pooled), for the aligned template's transferred map and for the pipeline's refined map (the learned region model's, with --set 'weights={regions=\"CKPT\"}'). Writes OUT/regions.csv and OUT/summary.txt.")
+    p.add_argument("--family", required=True)
+    p.add_argument("--synth", type=Path, required=True, help="a `frontal3d synth` folder (its regions/ hold the true maps)")
+    p.add_argument("--limit", type=int, help="only the first N frontal samples")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a family setting, e.g. --set 'weights={regions=\"regions.pt\"}'")
+    p.add_argument("-o", "--out", type=Path, default=Path("frontal3d-regions"), help="output folder (default: ./frontal3d-regions)")
+    p.set_defaults(run=_cmd_evaluate_regions)
+
     p = sub.add_parser("bench", help="time each stage and measure peak memory", description="Reconstruct an image several times and print per-stage seconds and peak memory.")
     p.add_argument("image", type=Path, nargs="?", help="input photo (default: the bundled example)")
     p.add_argument("--family", default="auto")
@@ -371,6 +379,18 @@ def _cmd_evaluate_gate(args: argparse.Namespace) -> int:
                                    _parse_sets(args.set), args.renders, args.subtype, progress=bar.update, labels=labels)
     print("\n".join(summary.lines()))
     print(f"wrote {args.out}/gate.csv, summary.txt")
+    return 0
+
+
+def _cmd_evaluate_regions(args: argparse.Namespace) -> int:
+    from frontal3d.eval_regions import evaluate_regions_on_synth
+    from frontal3d.progress import counter
+
+    plugins = _plugins(args)
+    with counter(args.limit, "sample") as bar:
+        _, summary = evaluate_regions_on_synth(plugins, args.family, args.synth, args.out, args.limit, _parse_sets(args.set), progress=bar.update)
+    print("\n".join(summary.lines()))
+    print(f"wrote {args.out}/regions.csv, summary.txt")
     return 0
 
 

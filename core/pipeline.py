@@ -197,6 +197,8 @@ def _reconstruct_shape_and_texture(
     work_rgb = _to_working(rgb[..., :3], crop, cv2.INTER_AREA)
     work_mask = _to_working(object_mask.astype(np.uint8), crop, cv2.INTER_NEAREST) > 0
     report.data["working_size"] = [int(work_mask.shape[1]), int(work_mask.shape[0])]
+    # Where the working grid (the debug maps' grid) lies in the input image.
+    report.data["crop"] = {"x": crop.x0, "y": crop.y0, "width": crop.width, "height": crop.height}
 
     with report.stage("align", progress):
         work_grey = cv2.cvtColor(work_rgb, cv2.COLOR_RGB2GRAY)
@@ -233,6 +235,7 @@ def _reconstruct_shape_and_texture(
 
     with report.stage("regions", progress):
         transferred = np.where(work_mask, aligned_template_regions, -1)
+        maps["transferred_regions"] = transferred
         regions = plugins.hook.frontal3d_segment_regions(
             image=work_rgb, object_mask=work_mask, transferred_regions=transferred, family=fam, subtype=subtype, settings=settings
         )

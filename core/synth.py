@@ -285,3 +285,11 @@ def read_sample(data_dir: Path, name: str) -> tuple[np.ndarray, np.ndarray]:
     if image is None or mask is None:
         raise InputError(f"{data_dir}: cannot read images/{name} or masks/{name}")
     return cv2.cvtColor(image, cv2.COLOR_BGR2RGB), mask > 0
+
+
+def read_sample_regions(data_dir: Path, name: str) -> np.ndarray:
+    """One sample's region map in its subtype's region indices, -1 outside the object."""
+    regions = cv2.imread(str(data_dir / "regions" / name), cv2.IMREAD_GRAYSCALE)
+    if regions is None:
+        raise InputError(f"{data_dir}: cannot read regions/{name}")
+    return regions.astype(np.int64) - 1

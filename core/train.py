@@ -24,7 +24,7 @@ from frontal3d.family import Family
 from frontal3d.learned import ARCHITECTURES, CLASSIFIER_TASKS, DENSE_TASKS, FORMAT_VERSION, GATE_CLASSES, INPUT_SIZE, WIDTHS, crop_square, cut_square, object_crop, to_tensor
 from frontal3d.learned_dense import DENSE_INPUT_SIZE, DENSE_WIDTHS, SEGMENTER_CLASSES, dense_probabilities, family_region_names, letterbox, regions_input
 from frontal3d.progress import counter
-from frontal3d.synth import read_family_labels, read_sample
+from frontal3d.synth import read_family_labels, read_sample, read_sample_regions
 
 #: Share of the samples held out for the accuracy report.
 HOLD_OUT = 0.15
@@ -187,7 +187,7 @@ def load_dense_dataset(data_dir: Path, task: str, family_of: Callable[[str], Fam
             inputs.append(letterbox(image, size)[0])
             targets.append((letterbox(mask.astype(np.uint8) * 255, size)[0] > 127).astype(np.int64))
         else:
-            regions = cv2.imread(str(data_dir / "regions" / row["file"]), cv2.IMREAD_GRAYSCALE).astype(np.int64) - 1
+            regions = read_sample_regions(data_dir, row["file"])
             crop = regions_input(image, mask, size)
             crop_regions = cv2.resize(cut_square(regions + 1, *crop_square(mask)).astype(np.uint8), (size, size), interpolation=cv2.INTER_NEAREST)
             inputs.append(crop)
