@@ -224,13 +224,19 @@ def _px(point: np.ndarray) -> tuple[int, int]:
 # --------------------------------------------------------------------------- scoring
 
 
-def occluder_pixels_left(atlas: np.ndarray, composite: np.ndarray, clean: np.ndarray, occluder: np.ndarray, object_mask: np.ndarray) -> int:
+def occluder_pixels_left(atlas: np.ndarray, composite: np.ndarray, clean: np.ndarray, occluder: np.ndarray, object_mask: np.ndarray,
+                         synthesized: np.ndarray | None = None) -> int:
     """Texture pixels inside the object that are still the occluder's own pixels.
 
     The atlas's front half is the photo's crop (inpainted under the found occluders); it is
     located in ``composite`` by template matching, and a pixel counts when it lies on the
     true occluder inside the object, matches the composite there to SAME_COLOUR and the
     composite there is unlike the object's true colour (``clean``) by DIFFERENT_COLOUR.
+    ``synthesized`` (the front half's texels the texture stage made up, see
+    ``TexturedMesh.front_synthesized``) are no longer the photo's pixel there: such a texel
+    counts only when no visible pixel of the object has its colour either (to SAME_COLOUR),
+    since a dark wood the inpainting copied may match a dark skin tone by chance, while
+    skin smeared in from outside the object matches nothing the object shows.
     """
     front = np.ascontiguousarray(atlas[:, : atlas.shape[1] // 2, :3])
     if front.shape[0] > composite.shape[0] or front.shape[1] > composite.shape[1]:
@@ -241,7 +247,18 @@ def occluder_pixels_left(atlas: np.ndarray, composite: np.ndarray, clean: np.nda
     shown = composite[window][..., :3].astype(int)
     same = np.abs(front.astype(int) - shown).max(axis=2) <= SAME_COLOUR
     unlike = np.abs(shown - clean[window][..., :3].astype(int)).max(axis=2) > DIFFERENT_COLOUR
-    return int(np.count_nonzero(same & unlike & occluder[window] & object_mask[window]))
+    left = same & unlike & occluder[window] & object_mask[window]
+    if synthesized is not None and synthesized.shape == left.shape:
+        made_up = left & synthesized
+        seen_colours = composite[object_mask & ~occluder][..., :3].astype(int)
+        explained = np.array([_colour_shown(colour, seen_colours) for colour in front[made_up].astype(int)], bool)
+        left[made_up] = ~explained
+    return int(np.count_nonzero(left))
+
+
+def _colour_shown(colour: np.ndarray, colours: np.ndarray) -> bool:
+    """Whether any of ``colours`` (n x 3) is within SAME_COLOUR of ``colour`` in every channel."""
+    return bool(len(colours)) and bool((np.abs(colours - colour).max(axis=1) <= SAME_COLOUR).any())
 
 
 def _reconstruct(plugins: Any, family: str, image: np.ndarray, mask: np.ndarray, occluder: np.ndarray | None, settings: dict[str, Any]):
@@ -308,7 +325,8 @@ def _composite_row(plugins, family, mesh_id, index, composite: Composite, image,
         result = _reconstruct(plugins, family, composite.image, composite.visible, given, settings)
         row.update(_scores(result, gt, clean))
         row["detected_fraction"] = result.report.get("occlusion", {}).get("occluded_fraction", 0.0)
-        row["occluder_pixels_left"] = occluder_pixels_left(result.textured.atlas, composite.image, image, composite.occluder, mask)
+        row["occluder_pixels_left"] = occluder_pixels_left(result.textured.atlas, composite.image, image, composite.occluder, mask,
+                                                           result.textured.front_synthesized)
     except NotFrontalError as exc:
         row["rejected"] = str(exc).splitlines()[0]
     except Frontal3DError as exc:
