@@ -229,7 +229,9 @@ def occluder_pixels_left(atlas: np.ndarray, composite: np.ndarray, clean: np.nda
     """Texture pixels inside the object that are still the occluder's own pixels.
 
     The atlas's front half is the photo's crop (inpainted under the found occluders); it is
-    located in ``composite`` by template matching, and a pixel counts when it lies on the
+    located in ``composite`` by template matching (on the texels taken from the photo when
+    ``synthesized`` is given: the made-up ones, the background bled over most of all, pulled
+    the match 13 px off on psb_m634), and a pixel counts when it lies on the
     true occluder inside the object, matches the composite there to SAME_COLOUR and the
     composite there is unlike the object's true colour (``clean``) by DIFFERENT_COLOUR.
     ``synthesized`` (the front half's texels the texture stage made up, see
@@ -241,14 +243,17 @@ def occluder_pixels_left(atlas: np.ndarray, composite: np.ndarray, clean: np.nda
     front = np.ascontiguousarray(atlas[:, : atlas.shape[1] // 2, :3])
     if front.shape[0] > composite.shape[0] or front.shape[1] > composite.shape[1]:
         return 0
-    scores = cv2.matchTemplate(composite[..., :3].astype(np.float32), front.astype(np.float32), cv2.TM_SQDIFF)
+    known = None
+    if synthesized is not None and synthesized.shape == front.shape[:2] and not synthesized.all():
+        known = np.repeat(~synthesized[..., None], 3, axis=2).astype(np.float32)
+    scores = cv2.matchTemplate(composite[..., :3].astype(np.float32), front.astype(np.float32), cv2.TM_SQDIFF, mask=known)
     _, _, (x0, y0), _ = cv2.minMaxLoc(scores)
     window = np.s_[y0 : y0 + front.shape[0], x0 : x0 + front.shape[1]]
     shown = composite[window][..., :3].astype(int)
     same = np.abs(front.astype(int) - shown).max(axis=2) <= SAME_COLOUR
     unlike = np.abs(shown - clean[window][..., :3].astype(int)).max(axis=2) > DIFFERENT_COLOUR
     left = same & unlike & occluder[window] & object_mask[window]
-    if synthesized is not None and synthesized.shape == left.shape:
+    if known is not None:
         made_up = left & synthesized
         seen_colours = composite[object_mask & ~occluder][..., :3].astype(int)
         explained = np.array([_colour_shown(colour, seen_colours) for colour in front[made_up].astype(int)], bool)

@@ -77,6 +77,22 @@ def test_occluder_pixels_left_counts_the_occluders_own_pixels_in_the_texture():
     assert occluder_pixels_left(np.concatenate([inpainted, inpainted], axis=1), composite.image, image, composite.occluder, guitar) == 0
 
 
+def test_the_texture_is_located_by_its_texels_taken_from_the_photo():
+    """Bled beyond the silhouette, the atlas's margin holds the object's colours where the
+    photo shows background: matched on every texel, the front lands off the object."""
+    image, guitar = _guitar()
+    image[guitar] = image[guitar] + np.random.default_rng(0).integers(0, 60, (int(guitar.sum()), 1)).astype(np.uint8)
+    composite = arm_occluder(image, guitar, np.random.default_rng(1))
+    rows, cols = np.nonzero(guitar)
+    window = np.s_[rows.min() - 15 : rows.max() + 6, cols.min() - 40 : cols.max() + 41]
+    front = composite.image[window].copy()
+    beyond = ~guitar[window]
+    front[beyond] = (40, 130, 210)  # the bled margin: bright, unlike the black background
+    atlas = np.concatenate([front, front], axis=1)
+    kept = int((composite.occluder & guitar).sum())
+    assert occluder_pixels_left(atlas, composite.image, image, composite.occluder, guitar, beyond) == kept
+
+
 def test_a_made_up_texel_counts_only_when_the_object_shows_nowhere_its_colour():
     """The inpainting copies the object's own colours, and a dark wood may match a dark skin
     tone by chance: such a texel is not the occluder's. Skin it smeared in from outside is."""
