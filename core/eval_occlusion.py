@@ -224,24 +224,46 @@ def _px(point: np.ndarray) -> tuple[int, int]:
 # --------------------------------------------------------------------------- scoring
 
 
-def occluder_pixels_left(atlas: np.ndarray, composite: np.ndarray, clean: np.ndarray, occluder: np.ndarray, object_mask: np.ndarray) -> int:
+def occluder_pixels_left(atlas: np.ndarray, composite: np.ndarray, clean: np.ndarray, occluder: np.ndarray, object_mask: np.ndarray,
+                         synthesized: np.ndarray | None = None) -> int:
     """Texture pixels inside the object that are still the occluder's own pixels.
 
     The atlas's front half is the photo's crop (inpainted under the found occluders); it is
-    located in ``composite`` by template matching, and a pixel counts when it lies on the
+    located in ``composite`` by template matching (on the texels taken from the photo when
+    ``synthesized`` is given: the made-up ones, the background bled over most of all, pulled
+    the match 13 px off on psb_m634), and a pixel counts when it lies on the
     true occluder inside the object, matches the composite there to SAME_COLOUR and the
     composite there is unlike the object's true colour (``clean``) by DIFFERENT_COLOUR.
+    ``synthesized`` (the front half's texels the texture stage made up, see
+    ``TexturedMesh.front_synthesized``) are no longer the photo's pixel there: such a texel
+    counts only when no visible pixel of the object has its colour either (to SAME_COLOUR),
+    since a dark wood the inpainting copied may match a dark skin tone by chance, while
+    skin smeared in from outside the object matches nothing the object shows.
     """
     front = np.ascontiguousarray(atlas[:, : atlas.shape[1] // 2, :3])
     if front.shape[0] > composite.shape[0] or front.shape[1] > composite.shape[1]:
         return 0
-    scores = cv2.matchTemplate(composite[..., :3].astype(np.float32), front.astype(np.float32), cv2.TM_SQDIFF)
+    known = None
+    if synthesized is not None and synthesized.shape == front.shape[:2] and not synthesized.all():
+        known = np.repeat(~synthesized[..., None], 3, axis=2).astype(np.float32)
+    scores = cv2.matchTemplate(composite[..., :3].astype(np.float32), front.astype(np.float32), cv2.TM_SQDIFF, mask=known)
     _, _, (x0, y0), _ = cv2.minMaxLoc(scores)
     window = np.s_[y0 : y0 + front.shape[0], x0 : x0 + front.shape[1]]
     shown = composite[window][..., :3].astype(int)
     same = np.abs(front.astype(int) - shown).max(axis=2) <= SAME_COLOUR
     unlike = np.abs(shown - clean[window][..., :3].astype(int)).max(axis=2) > DIFFERENT_COLOUR
-    return int(np.count_nonzero(same & unlike & occluder[window] & object_mask[window]))
+    left = same & unlike & occluder[window] & object_mask[window]
+    if known is not None:
+        made_up = left & synthesized
+        seen_colours = composite[object_mask & ~occluder][..., :3].astype(int)
+        explained = np.array([_colour_shown(colour, seen_colours) for colour in front[made_up].astype(int)], bool)
+        left[made_up] = ~explained
+    return int(np.count_nonzero(left))
+
+
+def _colour_shown(colour: np.ndarray, colours: np.ndarray) -> bool:
+    """Whether any of ``colours`` (n x 3) is within SAME_COLOUR of ``colour`` in every channel."""
+    return bool(len(colours)) and bool((np.abs(colours - colour).max(axis=1) <= SAME_COLOUR).any())
 
 
 def _reconstruct(plugins: Any, family: str, image: np.ndarray, mask: np.ndarray, occluder: np.ndarray | None, settings: dict[str, Any]):
@@ -308,7 +330,8 @@ def _composite_row(plugins, family, mesh_id, index, composite: Composite, image,
         result = _reconstruct(plugins, family, composite.image, composite.visible, given, settings)
         row.update(_scores(result, gt, clean))
         row["detected_fraction"] = result.report.get("occlusion", {}).get("occluded_fraction", 0.0)
-        row["occluder_pixels_left"] = occluder_pixels_left(result.textured.atlas, composite.image, image, composite.occluder, mask)
+        row["occluder_pixels_left"] = occluder_pixels_left(result.textured.atlas, composite.image, image, composite.occluder, mask,
+                                                           result.textured.front_synthesized)
     except NotFrontalError as exc:
         row["rejected"] = str(exc).splitlines()[0]
     except Frontal3DError as exc:

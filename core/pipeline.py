@@ -284,6 +284,10 @@ def _reconstruct_shape_and_texture(
         full_mask = cv2.resize(work_mask.astype(np.uint8), (crop.width, crop.height), interpolation=cv2.INTER_NEAREST) > 0
         full_regions = cv2.resize(regions.astype(np.int16), (crop.width, crop.height), interpolation=cv2.INTER_NEAREST).astype(np.int32)
         full_occluded = cv2.resize(occluded.astype(np.uint8), (crop.width, crop.height), interpolation=cv2.INTER_NEAREST) > 0
+        if full_occluded.any():
+            window = np.s_[crop.y0 : crop.y0 + crop.height, crop.x0 : crop.x0 + crop.width]
+            full_occluders = None if occluders is None else occluders[window]
+            full_occluded = occlusion.occluded_at_full_resolution(full_occluded, full_mask, object_mask[window], full_occluders)
         back_rules = {}
         for rules in plugins.hook.frontal3d_back_texture_rules():
             back_rules.update(rules)

@@ -77,6 +77,45 @@ def test_occluder_pixels_left_counts_the_occluders_own_pixels_in_the_texture():
     assert occluder_pixels_left(np.concatenate([inpainted, inpainted], axis=1), composite.image, image, composite.occluder, guitar) == 0
 
 
+def test_the_texture_is_located_by_its_texels_taken_from_the_photo():
+    """Bled beyond the silhouette, the atlas's margin holds the object's colours where the
+    photo shows background: matched on every texel, the front lands off the object."""
+    image, guitar = _guitar()
+    image[guitar] = image[guitar] + np.random.default_rng(0).integers(0, 60, (int(guitar.sum()), 1)).astype(np.uint8)
+    composite = arm_occluder(image, guitar, np.random.default_rng(1))
+    rows, cols = np.nonzero(guitar)
+    window = np.s_[rows.min() - 15 : rows.max() + 6, cols.min() - 40 : cols.max() + 41]
+    front = composite.image[window].copy()
+    beyond = ~guitar[window]
+    front[beyond] = (40, 130, 210)  # the bled margin: bright, unlike the black background
+    atlas = np.concatenate([front, front], axis=1)
+    kept = int((composite.occluder & guitar).sum())
+    assert occluder_pixels_left(atlas, composite.image, image, composite.occluder, guitar, beyond) == kept
+
+
+def test_a_made_up_texel_counts_only_when_the_object_shows_nowhere_its_colour():
+    """The inpainting copies the object's own colours, and a dark wood may match a dark skin
+    tone by chance: such a texel is not the occluder's. Skin it smeared in from outside is."""
+    image, guitar = _guitar()
+    image[guitar & (np.arange(300)[:, None] < 60)] = (90, 55, 35)  # a dark brown headstock
+    composite = arm_occluder(image, guitar, np.random.default_rng(1))
+    hidden = composite.occluder & guitar & (np.arange(300)[:, None] >= 60)
+    rows, cols = np.nonzero(guitar)
+    window = np.s_[rows.min() - 5 : rows.max() + 6, cols.min() - 5 : cols.max() + 6]
+    dark, hidden_here = (90, 55, 35), hidden[window]
+    composite.image[hidden] = dark  # an arm as dark as the headstock's wood
+    front = np.where(composite.occluder[window][..., None], image[window], composite.image[window])
+    front[hidden_here] = dark  # ... and the inpainting filled it with that wood
+    synthesized = composite.occluder[window].copy()
+    atlas = np.concatenate([front, front], axis=1)
+    assert hidden.sum() > 50
+    assert occluder_pixels_left(atlas, composite.image, image, composite.occluder, guitar) == hidden.sum()  # not told apart
+    assert occluder_pixels_left(atlas, composite.image, image, composite.occluder, guitar, synthesized) == 0
+    image[guitar & (np.arange(300)[:, None] < 60)] = (40, 70, 150)  # no wood that dark on the object: skin smeared in
+    composite.image[guitar & ~composite.occluder] = image[guitar & ~composite.occluder]
+    assert occluder_pixels_left(atlas, composite.image, image, composite.occluder, guitar, synthesized) == hidden.sum()
+
+
 def test_the_summary_compares_means_with_the_same_renders_unoccluded():
     rows = [
         {"mode": "guitarist", "occluded_share": 0.2, "rejected": "", "iou": 0.45, "iou_clean": 0.5, "chamfer_l1": 0.11, "chamfer_l1_clean": 0.1,

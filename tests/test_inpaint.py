@@ -76,6 +76,17 @@ def test_a_region_with_no_visible_pixel_is_still_filled():
     assert not np.any(np.all(out[hidden] == OCCLUDER, axis=1))
 
 
+def test_a_region_with_no_visible_pixel_takes_no_colour_from_beyond_the_object():
+    """The arm reaches past the object's edge (columns 160-175): a hidden region next to it is
+    filled from the object around it, not with the arm's colour."""
+    image, region_map, arm = _two_region_scene()
+    hidden = (region_map == 1) | (arm & (region_map >= 0))
+    out = inpaint_regions(image, region_map, hidden)
+    filled = out[region_map == 1].astype(int)
+    assert filled[:, 1].max() < 128  # the object's colours have little green; the arm is pure green
+    np.testing.assert_array_equal(out[region_map == -1], image[region_map == -1])
+
+
 def test_same_seed_gives_same_result():
     image, region_map, arm = _two_region_scene()
     np.testing.assert_array_equal(inpaint_regions(image, region_map, arm, seed=5),

@@ -257,7 +257,8 @@ def inpaint_regions(image: np.ndarray, region_map: np.ndarray, fill_mask: np.nda
     Per region: quilt from the largest visible square (side ``patch_min``..``patch_max``,
     scaled by :func:`scaled_patch_range`), else exemplar inpainting from the region's
     visible patches. A region with no visible pixel at all has no colour of its own;
-    it is filled by OpenCV's Telea inpainting from its surroundings. Pixels of
+    it is filled by OpenCV's Telea inpainting from the object around it (never from
+    what lies beyond the regions: an arm reaching past the object). Pixels of
     ``fill_mask`` outside every region (``region_map == -1``) are left unchanged.
     Returns a new uint8 image; the input is not modified.
     """
@@ -285,5 +286,8 @@ def inpaint_regions(image: np.ndarray, region_map: np.ndarray, fill_mask: np.nda
             without_colour |= hole
     result = np.clip(np.rint(out), 0, 255).astype(np.uint8)
     if without_colour.any():
-        result = cv2.inpaint(result, without_colour.astype(np.uint8), 3, cv2.INPAINT_TELEA)
+        # Telea propagates the colours bordering its mask: pixels outside every region are
+        # masked too, so only the object's own (visible or already filled) pixels spread.
+        unknown = without_colour | (region_map < 0)
+        result[without_colour] = cv2.inpaint(result, unknown.astype(np.uint8), 3, cv2.INPAINT_TELEA)[without_colour]
     return result

@@ -202,6 +202,24 @@ def rebuild_silhouette(object_mask: np.ndarray, occluders: np.ndarray, aligned_t
     return RebuiltSilhouette(filled, occluded, original_area, rebuilt_parts)
 
 
+def occluded_at_full_resolution(upsampled: np.ndarray, rebuilt_mask: np.ndarray, seen_object: np.ndarray,
+                                occluders: np.ndarray | None) -> np.ndarray:
+    """The pixels of the full-resolution rebuilt mask to inpaint.
+
+    ``upsampled`` is the working grid's occluded mask scaled up, which misses what the
+    working grid could not resolve: an occluder's edge, a finger one working pixel wide,
+    the border pixels the coarse outline adds. Added here, at full resolution: every
+    pixel of ``rebuilt_mask`` the ``seen_object`` mask leaves out (whatever shows there is
+    not the object) and the full-resolution ``occluders`` on it with one pixel of slack
+    (their anti-aliased edge), so no occluder pixel is kept or copied as a source.
+    """
+    rebuilt_mask = np.asarray(rebuilt_mask, dtype=bool)
+    occluded = np.asarray(upsampled, dtype=bool) | ~np.asarray(seen_object, dtype=bool)
+    if occluders is not None:
+        occluded |= cv2.dilate(np.asarray(occluders, dtype=np.uint8), _disc(1)) > 0
+    return rebuilt_mask & occluded
+
+
 def rebuild_regions(regions: np.ndarray, object_mask: np.ndarray, occluded: np.ndarray, n_regions: int) -> np.ndarray:
     """Give every pixel of the (rebuilt) mask a region, filling occluded ones from neighbours."""
     needs_fill = object_mask & ((regions < 0) | occluded)

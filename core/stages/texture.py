@@ -38,12 +38,15 @@ class TexturedMesh:
     per UV), ``watertight_mesh`` the same closed geometry without the split.
     ``atlas`` (h, 2w, 3 uint8) = front half | back half; ``normal_map`` is its
     tangent-space normal map (RGB = (n + 1) / 2, +X right, +Y up, as glTF expects).
+    ``front_synthesized`` (h, w bool) marks the front half's texels that are not the photo's
+    own pixel there: inpainted under occluders, or bled beyond the silhouette.
     """
 
     mesh: trimesh.Trimesh
     atlas: np.ndarray
     normal_map: np.ndarray
     watertight_mesh: trimesh.Trimesh
+    front_synthesized: np.ndarray
 
 
 def _bleed(texture: np.ndarray, inside: np.ndarray) -> np.ndarray:
@@ -159,4 +162,6 @@ def build_textured_mesh(mesh_result: MeshResult, image: np.ndarray, mask: np.nda
     )
     visual = trimesh.visual.TextureVisuals(uv=np.concatenate([uv, rim_uv[rim_vertices]]), material=material)
     textured = trimesh.Trimesh(vertices=vertices, faces=split_faces, visual=visual, process=False)
-    return TexturedMesh(mesh=textured, atlas=atlas, normal_map=normal_map, watertight_mesh=watertight.copy())
+    front_synthesized = fill[y0:y1, x0:x1] | ~mask[y0:y1, x0:x1]
+    return TexturedMesh(mesh=textured, atlas=atlas, normal_map=normal_map, watertight_mesh=watertight.copy(),
+                        front_synthesized=front_synthesized)
