@@ -309,3 +309,50 @@ def test_a_learned_probability_keeps_a_separate_coloured_blob_out():
     assert (alone & (blob[..., 0] > 0.5)).sum() > 1000  # the colour cues take the blob for an object too
     assert seeded is not None and not (seeded & (blob[..., 0] > 0.5)).any()
     assert _iou(seeded, truth) > 0.97
+
+
+def _car_like_mask(shape: tuple[int, int]) -> np.ndarray:
+    truth = np.zeros(shape, np.uint8)
+    cv2.rectangle(truth, (120, 250), (420, 330), 1, -1)
+    cv2.rectangle(truth, (190, 200), (350, 260), 1, -1)
+    return truth > 0
+
+
+def _blob(shape: tuple[int, int], centre: tuple[int, int], axes: tuple[int, int]) -> np.ndarray:
+    blob = np.zeros(shape, np.float32)
+    cv2.ellipse(blob, centre, axes, 30, 0, 360, 1.0, -1)
+    return cv2.GaussianBlur(blob, (0, 0), 3)[..., None]
+
+
+def test_a_learned_probability_cuts_off_a_blob_touching_the_object():
+    # The blob lies behind the roof: the colour cues see one seed region, the network
+    # sees the blob's far side as background, and the blob is not the car's colour.
+    rng = np.random.default_rng(10)
+    shape = (480, 640)
+    truth = _car_like_mask(shape)
+    blob = _blob(shape, (400, 170), (90, 70))
+    background = np.full(shape + (3,), (205.0, 210, 200)) * (1 - blob) + blob * np.array([40.0, 60, 170])
+    image = _composite(background, truth, (170, 40, 35), rng)
+    beyond = (blob[..., 0] > 0.5) & ~truth
+    fooled = grabcut_segment(image, object_probability=_network_like_probability(truth | beyond))
+    seeded = grabcut_segment(image, object_probability=_network_like_probability(truth))
+    assert (fooled & beyond).sum() > 0.5 * beyond.sum()  # a network that also saw the blob keeps it
+    assert seeded is not None and (seeded & beyond).sum() < 0.02 * beyond.sum()
+    assert _iou(seeded, truth) > 0.97
+
+
+def test_a_learned_probability_keeps_a_part_of_the_object_s_colour_it_missed():
+    # A long boom of the car's colour reaches far beyond what the network saw: it stays,
+    # though the background darkens under it (its colour is judged as seen, not flattened).
+    rng = np.random.default_rng(11)
+    shape = (480, 640)
+    body = _car_like_mask(shape)
+    boom = np.zeros(shape, np.uint8)
+    cv2.rectangle(boom, (420, 280), (560, 292), 1, -1)
+    truth = body | (boom > 0)
+    ramp = np.linspace(0, 1, shape[1])[None, :, None]
+    background = np.array([215.0, 220, 210]) * (1 - ramp) + np.array([90.0, 110, 150]) * ramp + np.zeros(shape + (1,))
+    image = _composite(background, truth, (170, 40, 35), rng)
+    seeded = grabcut_segment(image, object_probability=_network_like_probability(body))
+    assert seeded is not None and (seeded & (boom > 0)).sum() > 0.9 * (boom > 0).sum()
+    assert _iou(seeded, truth) > 0.97

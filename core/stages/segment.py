@@ -14,6 +14,7 @@ from typing import Mapping
 
 import cv2
 import numpy as np
+from scipy import ndimage
 
 from frontal3d.render import TemplateRenders
 from frontal3d.stages.align import warp_mask
@@ -66,6 +67,9 @@ LEARNED_UNLIKELY = 0.1
 #: How far (fraction of the long side) a seed region may lie from the learned segmenter's
 #: object and still count as part of it (it sees the photo at 96 px: edges blur away).
 LEARNED_REACH = 0.03
+#: Median distance (Lab units) from the learned object's colours beyond which a seed piece
+#: out of the network's reach is something else (a blob behind the object).
+FOREIGN_COLOUR = 10.0
 
 
 def mask_from_alpha(image: np.ndarray) -> np.ndarray | None:
@@ -232,7 +236,7 @@ def _initial_labels(lab: np.ndarray, background: np.ndarray, border_mask: np.nda
         salient |= component
     sure_background = np.zeros_like(salient)
     if probability is not None:
-        salient, sure_background = _learned_seeds(salient, probability)
+        salient, sure_background = _learned_seeds(salient, probability, cv2.GaussianBlur(lab, (0, 0), 1.5))
     init = np.full(lab.shape[:2], cv2.GC_PR_BGD, np.uint8)
     reach = max(3, round(SEED_REACH * max(lab.shape[:2])))
     near = cv2.dilate(salient.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1,) * 2)) > 0
@@ -244,22 +248,37 @@ def _initial_labels(lab: np.ndarray, background: np.ndarray, border_mask: np.nda
     return init
 
 
-def _learned_seeds(salient: np.ndarray, probability: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _learned_seeds(salient: np.ndarray, probability: np.ndarray, colours: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The classical seeds corrected by a learned p(object): (probable object, sure background).
 
     The network sees the photo at low resolution: it knows where the object is, but blurs
     its edge and misses thin or unusual parts (a tailplane, a pick-up's bed), while the
-    colour cues know the edge but take blobs for objects. So the network only judges whole
-    seed regions: those that do not reach within :data:`LEARNED_REACH` of its object
-    (p >= :data:`LEARNED_UNLIKELY`) become sure background, the others stay whole, and its
-    object (p > 0.5) is added. Everything else is left to GrabCut as without the network.
+    colour cues know the edge but take blobs for objects. So seed regions that do not
+    reach within :data:`LEARNED_REACH` of its object (p >= :data:`LEARNED_UNLIKELY`)
+    become sure background, and so do the pieces of the others that lie beyond that
+    reach unless their colours (``colours``, Lab as seen: on a gradient the flattened
+    colours of one surface differ from place to place) are the network's object's
+    (a tailplane is the fuselage's colour, a blob behind the object is not): see
+    :func:`_foreign_pieces`. Its object (p > 0.5) is added; everything else is left to
+    GrabCut as without the network.
     """
     reach = max(2, round(LEARNED_REACH * max(probability.shape)))
     disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1,) * 2)
     near_object = cv2.dilate((probability >= LEARNED_UNLIKELY).astype(np.uint8), disc) > 0
     _, labels = cv2.connectedComponents(salient.astype(np.uint8), connectivity=8)
     kept = np.isin(labels, np.unique(labels[salient & near_object])) & salient
+    kept &= ~_foreign_pieces(kept & ~near_object, kept & (probability > 0.5), colours)
     return kept | (probability > 0.5), salient & ~kept
+
+
+def _foreign_pieces(far: np.ndarray, core: np.ndarray, colours: np.ndarray) -> np.ndarray:
+    """The pieces of ``far`` whose median colour distance to ``core``'s colours exceeds :data:`FOREIGN_COLOUR`."""
+    if not far.any() or np.count_nonzero(core) < MIN_OBJECT_PIXELS:
+        return np.zeros_like(far)
+    count, labels = cv2.connectedComponents(far.astype(np.uint8), connectivity=8)
+    distance = _distance_to_colours(colours[far][:, None], colours[core])[:, 0]
+    medians = np.asarray(ndimage.median(distance, labels[far], np.arange(1, count)))
+    return np.isin(labels, 1 + np.flatnonzero(medians > FOREIGN_COLOUR))
 
 
 def _smoother_than_background(texture: np.ndarray, border_mask: np.ndarray) -> np.ndarray:
