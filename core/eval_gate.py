@@ -33,7 +33,7 @@ from frontal3d.family import Family
 from frontal3d.photo_render import load_coloured_mesh
 from frontal3d.pipeline import run_classifiers
 from frontal3d.plugins import Plugins
-from frontal3d.synth import read_family_labels, read_sample
+from frontal3d.synth import read_labels_of, read_sample
 
 #: Turns (degrees) that still count as the canonical view (the paper's ±10°).
 FRONTAL_LIMIT_DEG = 10.0
@@ -110,18 +110,19 @@ def evaluate_gate(plugins: Plugins, family: str, meshes_dir: Path, out_dir: Path
     if not paths:
         raise InputError(f"no *.glb meshes in {meshes_dir}")
     fam_settings = plugins.settings(fam.name, settings or {})
+    labels = labels or {}
     rows = []
     for path in paths:
         mesh = load_coloured_mesh(path)
         for axis, degrees in views(angles):
             image, mask, _ = render_frontal(turned(mesh, axis, degrees), resolution)
-            true_subtype = (labels or {}).get(path.stem, "") if degrees == 0 else ""
+            true_subtype = labels.get(path.stem, "") if degrees == 0 else ""
             rows.append(_judged(plugins, fam, fam_settings, subtype, image, mask)
                         | {"id": path.stem, "axis": axis, "degrees": degrees, "true_subtype": true_subtype})
         if renders_dir is not None:
             image, mask, _ = load_render(Path(renders_dir), path.stem)
             rows.append(_judged(plugins, fam, fam_settings, subtype, image, mask)
-                        | {"id": path.stem, "axis": "render", "degrees": 0.0, "true_subtype": (labels or {}).get(path.stem, "")})
+                        | {"id": path.stem, "axis": "render", "degrees": 0.0, "true_subtype": labels.get(path.stem, "")})
         if progress:
             progress(1)
     summary = summarize(rows)
@@ -156,9 +157,7 @@ def evaluate_gate_on_synth(plugins: Plugins, family: str, data_dir: Path, out_di
     """Judge the first ``limit`` samples of a ``frontal3d synth`` folder with their true masks;
     writes ``gate.csv`` and ``summary.txt`` into ``out_dir`` when given."""
     data_dir = Path(data_dir)
-    labels, families = read_family_labels(data_dir)
-    if families[0] != family:
-        raise InputError(f"{data_dir} holds {families[0]} samples, not {family}")
+    labels = read_labels_of(data_dir, family)
     fam = plugins.family(family)
     fam_settings = plugins.settings(fam.name, settings or {})
     rows = []

@@ -23,7 +23,7 @@ from frontal3d.errors import Frontal3DError, InputError
 from frontal3d.evaluate import write_csv
 from frontal3d.pipeline import reconstruct
 from frontal3d.plugins import Plugins
-from frontal3d.synth import read_family_labels, read_sample, read_sample_regions
+from frontal3d.synth import read_labels_of, read_sample, read_sample_regions
 
 #: The two region maps scored (the pipeline's map name -> CSV column, summary label):
 #: the template's prior and the pipeline's result.
@@ -68,9 +68,7 @@ def evaluate_regions_on_synth(plugins: Plugins, family: str, data_dir: Path, out
     """Score the region maps of the first ``limit`` frontal samples of a synth folder; writes
     ``regions.csv`` and ``summary.txt`` into ``out_dir`` when given."""
     data_dir = Path(data_dir)
-    labels, families = read_family_labels(data_dir)
-    if families[0] != family:
-        raise InputError(f"{data_dir} holds {families[0]} samples, not {family}")
+    labels = read_labels_of(data_dir, family)
     frontal = [label for label in labels if int(label["frontal"])][:limit]
     if not frontal:
         raise InputError(f"{data_dir}: no frontal samples to score regions on")

@@ -278,6 +278,14 @@ def read_family_labels(data_dir: Path) -> tuple[list[dict[str, str]], list[str]]
     return rows, families
 
 
+def read_labels_of(data_dir: Path, family: str) -> list[dict[str, str]]:
+    """labels.csv's rows, refused unless they are all samples of ``family`` (benchmarks judge one family)."""
+    rows, families = read_family_labels(data_dir)
+    if families[0] != family:
+        raise InputError(f"{data_dir} holds {families[0]} samples, not {family}")
+    return rows
+
+
 def read_sample(data_dir: Path, name: str) -> tuple[np.ndarray, np.ndarray]:
     """One sample's RGB image and object mask."""
     image = cv2.imread(str(data_dir / "images" / name), cv2.IMREAD_COLOR)

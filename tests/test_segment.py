@@ -291,26 +291,6 @@ def test_a_learned_probability_seeds_an_object_the_colour_cues_lost():
     assert seeded is not None and _iou(seeded, truth) > 0.88  # the tailplane, 3 px wide at 96 px, stays lost
 
 
-def test_a_learned_probability_keeps_a_separate_coloured_blob_out():
-    rng = np.random.default_rng(9)
-    shape = (480, 640)
-    truth = np.zeros(shape, np.uint8)
-    cv2.rectangle(truth, (120, 250), (420, 330), 1, -1)
-    cv2.rectangle(truth, (190, 200), (350, 260), 1, -1)
-    truth = truth > 0
-    background = np.full(shape + (3,), (205.0, 210, 200))
-    blob = np.zeros(shape, np.float32)
-    cv2.ellipse(blob, (540, 130), (70, 50), 30, 0, 360, 1.0, -1)
-    blob = cv2.GaussianBlur(blob, (0, 0), 3)[..., None]
-    background = background * (1 - blob) + blob * np.array([40.0, 60, 170])
-    image = _composite(background, truth, (170, 40, 35), rng)
-    alone = grabcut_segment(image)
-    seeded = grabcut_segment(image, object_probability=_network_like_probability(truth))
-    assert (alone & (blob[..., 0] > 0.5)).sum() > 1000  # the colour cues take the blob for an object too
-    assert seeded is not None and not (seeded & (blob[..., 0] > 0.5)).any()
-    assert _iou(seeded, truth) > 0.97
-
-
 def _car_like_mask(shape: tuple[int, int]) -> np.ndarray:
     truth = np.zeros(shape, np.uint8)
     cv2.rectangle(truth, (120, 250), (420, 330), 1, -1)
@@ -322,6 +302,20 @@ def _blob(shape: tuple[int, int], centre: tuple[int, int], axes: tuple[int, int]
     blob = np.zeros(shape, np.float32)
     cv2.ellipse(blob, centre, axes, 30, 0, 360, 1.0, -1)
     return cv2.GaussianBlur(blob, (0, 0), 3)[..., None]
+
+
+def test_a_learned_probability_keeps_a_separate_coloured_blob_out():
+    rng = np.random.default_rng(9)
+    shape = (480, 640)
+    truth = _car_like_mask(shape)
+    blob = _blob(shape, (540, 130), (70, 50))
+    background = np.full(shape + (3,), (205.0, 210, 200)) * (1 - blob) + blob * np.array([40.0, 60, 170])
+    image = _composite(background, truth, (170, 40, 35), rng)
+    alone = grabcut_segment(image)
+    seeded = grabcut_segment(image, object_probability=_network_like_probability(truth))
+    assert (alone & (blob[..., 0] > 0.5)).sum() > 1000  # the colour cues take the blob for an object too
+    assert seeded is not None and not (seeded & (blob[..., 0] > 0.5)).any()
+    assert _iou(seeded, truth) > 0.97
 
 
 def test_a_learned_probability_cuts_off_a_blob_touching_the_object():
