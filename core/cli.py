@@ -43,6 +43,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 3
 
 
+_MESHES_HELP = "folder of ground-truth *.glb in the family's canonical frame"
+
+
+def _add_set_option(parser: argparse.ArgumentParser, example: str) -> None:
+    """The ``--set KEY=VALUE`` option every command that runs the pipeline takes."""
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help=f"override a family setting, e.g. --set {example} (value parsed as TOML)")
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="frontal3d",
@@ -61,7 +70,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--mask", type=Path, help="object mask (non-zero = object); only with a single IMAGE")
     p.add_argument("--occluder-mask", type=Path, help="mask of things in front of the object (hands, stands); only with a single IMAGE")
     p.add_argument("-o", "--out", type=Path, default=Path("frontal3d-out"), help="output folder (default: ./frontal3d-out)")
-    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a family setting, e.g. --set working_resolution=400 (value parsed as TOML)")
+    _add_set_option(p, "working_resolution=400")
     p.add_argument("-v", "--verbose", action="store_true", help="log each stage and write intermediate maps to OUTDIR/<stem>/debug/")
     p.set_defaults(run=_cmd_reconstruct)
 
@@ -96,23 +105,23 @@ def _parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("evaluate", help="score reconstructions against ground-truth meshes (the paper's protocol)", description="For each ground-truth mesh (canonical frame), reconstruct from its frontal render and compare: voxel IoU (128^3, ICP-aligned), Chamfer-L1 and F-score@0.1 (each mesh centred on its box; also after the IoU's ICP alignment, as a second reading of the paper). Writes metrics.csv, summary.csv and boxplots.png.")
     p.add_argument("--family", required=True)
-    p.add_argument("--meshes", type=Path, required=True, help="folder of ground-truth *.glb in the family's canonical frame")
+    p.add_argument("--meshes", type=Path, required=True, help=_MESHES_HELP)
     p.add_argument("--renders", type=Path, help="folder of <id>.png/<id>_mask.png/<id>.json frontal renders (default: render them)")
     p.add_argument("--method", choices=["template", "slab"], default="template", help="template (the pipeline) or slab (the plain extrusion baseline)")
     p.add_argument("--limit", type=int, help="only the first N meshes")
-    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a family setting for the template method")
+    _add_set_option(p, "frontal_threshold=0")
     p.add_argument("-o", "--out", type=Path, default=Path("frontal3d-eval"), help="output folder")
     p.set_defaults(run=_cmd_evaluate)
 
     p = sub.add_parser("evaluate-occlusion", help="score reconstructions of renders with arms or people pasted in front (issue 7's protocols)", description="Paste occluders over each frontal render (10-30 %% of the object) and reconstruct from the visible mask: arms = procedural skin-toned forearms and hands, their mask given as the occluder mask; people = people cut out of public-domain photos shipped with skimage and matplotlib, as a guitarist (body behind, an arm in front) or whole in front, no occluder mask given (each also run with its true mask for reference). Reports each metric's change against the unoccluded reconstruction, rejections and occluder pixels left in the texture. Writes composites.csv, summary.csv and images/.")
     p.add_argument("--family", required=True)
-    p.add_argument("--meshes", type=Path, required=True, help="folder of ground-truth *.glb in the family's canonical frame")
+    p.add_argument("--meshes", type=Path, required=True, help=_MESHES_HELP)
     p.add_argument("--renders", type=Path, required=True, help="folder of <id>.png/<id>_mask.png/<id>.json frontal renders")
     p.add_argument("--occluders", choices=["arms", "people"], required=True, help="arms (mask given) or people (found by the detectors)")
     p.add_argument("--per-object", type=int, default=5, help="composites per render (default: 5)")
     p.add_argument("--seed", type=int, default=0, help="placement seed; the same seed gives the same composites")
     p.add_argument("--limit", type=int, help="only the first N meshes")
-    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a family setting")
+    _add_set_option(p, "working_resolution=400")
     p.add_argument("-o", "--out", type=Path, default=Path("frontal3d-eval-occlusion"), help="output folder")
     p.set_defaults(run=_cmd_evaluate_occlusion)
 
@@ -123,7 +132,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--every", type=int, default=1, help="use every N-th render of the sorted listing (default: 1)")
     p.add_argument("--offset", type=int, default=0, help="start at this index of the listing, below --every (default: 0; 1 with --every 2 = the odd half)")
     p.add_argument("--seed", type=int, default=0, help="seed of the backgrounds and the sensor noise")
-    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a family setting, e.g. --set shape_prior=true")
+    _add_set_option(p, "shape_prior=true")
     p.add_argument("-o", "--out", type=Path, default=Path("frontal3d-masks"), help="output folder (default: ./frontal3d-masks)")
     p.add_argument("-v", "--verbose", action="store_true", help="also write a debug sheet per image to OUT/debug (input | mask | truth)")
     p.set_defaults(run=_cmd_evaluate_masks)
@@ -131,7 +140,7 @@ def _parser() -> argparse.ArgumentParser:
     p = sub.add_parser("evaluate-gate", help="measure the frontal gate on ground-truth meshes turned away from the canonical view", description="Render each ground-truth mesh (canonical frame) turned about image-up and image-right by each angle, both ways, as a shaded frontal image, run the classifier chain on it with the true mask given, and print the acceptance per angle and the balanced accuracy (0 deg, and 0-10 deg, accepted vs >= 30 deg rejected). With --synth, judges the samples of a `frontal3d synth` folder by their frontal/turned labels instead (the held-out synthetic figures margins are chosen on). Writes OUT/gate.csv (one row per view or sample, with the gate's reason) and OUT/summary.txt.")
     p.add_argument("--family", required=True)
     source = p.add_mutually_exclusive_group(required=True)
-    source.add_argument("--meshes", type=Path, help="folder of ground-truth *.glb in the family's canonical frame")
+    source.add_argument("--meshes", type=Path, help=_MESHES_HELP)
     source.add_argument("--synth", type=Path, help="a `frontal3d synth` folder instead: judge its samples by their frontal/turned labels")
     p.add_argument("--subtype", help="judge against this subtype's template only")
     p.add_argument("--renders", type=Path, help="also judge these given frontal renders (<id>.png, _mask.png, .json), e.g. the shared renders")
@@ -139,7 +148,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--angles", default="0,10,30,45,60,90", help="turns in degrees, comma-separated (default: 0,10,30,45,60,90)")
     p.add_argument("--resolution", type=int, default=256, help="side of the rendered views (default: 256)")
     p.add_argument("--limit", type=int, help="only the first N meshes")
-    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a family setting, e.g. --set turned_margin=1")
+    _add_set_option(p, "turned_margin=1")
     p.add_argument("-o", "--out", type=Path, default=Path("frontal3d-gate"), help="output folder (default: ./frontal3d-gate)")
     p.set_defaults(run=_cmd_evaluate_gate)
 
@@ -147,7 +156,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--family", required=True)
     p.add_argument("--synth", type=Path, required=True, help="a `frontal3d synth` folder (its regions/ hold the true maps)")
     p.add_argument("--limit", type=int, help="only the first N frontal samples")
-    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a family setting, e.g. --set 'weights={regions=\"regions.pt\"}'")
+    _add_set_option(p, "'weights={regions=\"regions.pt\"}'")
     p.add_argument("-o", "--out", type=Path, default=Path("frontal3d-regions"), help="output folder (default: ./frontal3d-regions)")
     p.set_defaults(run=_cmd_evaluate_regions)
 
