@@ -70,6 +70,10 @@ LEARNED_REACH = 0.03
 #: Median distance (Lab units) from the learned object's colours beyond which a seed piece
 #: out of the network's reach is something else (a blob behind the object).
 FOREIGN_COLOUR = 10.0
+#: The same distance for the pieces GrabCut grew beyond the network's reach: higher, since
+#: what it grew is often the object's own surface under other light (a bonnet's reflection,
+#: 12-15 on the shared car photos), while a blob it grew into lies far off (30-55).
+FOREIGN_GROWTH_COLOUR = 20.0
 #: GrabCut iterations of the second cut once foreign pieces of its foreground are removed.
 FOREIGN_ITERATIONS = 2
 
@@ -283,20 +287,20 @@ def _cut_foreign_growth(labels: np.ndarray, probability: np.ndarray, colours: np
     reach in colours not its object's (a blob's far side, once a seed near the object taught the
     foreground model its colour): they become sure background and GrabCut cuts again."""
     found = _foreground(labels)
-    foreign = _foreign_pieces(found & ~_near_learned_object(probability), found & (probability > 0.5), colours)
+    foreign = _foreign_pieces(found & ~_near_learned_object(probability), found & (probability > 0.5), colours, FOREIGN_GROWTH_COLOUR)
     if foreign.any():
         labels[foreign] = cv2.GC_BGD
         _grabcut(flattened, labels, FOREIGN_ITERATIONS)
 
 
-def _foreign_pieces(far: np.ndarray, core: np.ndarray, colours: np.ndarray) -> np.ndarray:
-    """The pieces of ``far`` whose median colour distance to ``core``'s colours exceeds :data:`FOREIGN_COLOUR`."""
+def _foreign_pieces(far: np.ndarray, core: np.ndarray, colours: np.ndarray, threshold: float = FOREIGN_COLOUR) -> np.ndarray:
+    """The pieces of ``far`` whose median colour distance to ``core``'s colours exceeds ``threshold``."""
     if not far.any() or np.count_nonzero(core) < MIN_OBJECT_PIXELS:
         return np.zeros_like(far)
     count, labels = cv2.connectedComponents(far.astype(np.uint8), connectivity=8)
     distance = _distance_to_colours(colours[far][:, None], colours[core])[:, 0]
     medians = np.asarray(ndimage.median(distance, labels[far], np.arange(1, count)))
-    return np.isin(labels, 1 + np.flatnonzero(medians > FOREIGN_COLOUR))
+    return np.isin(labels, 1 + np.flatnonzero(medians > threshold))
 
 
 def _smoother_than_background(texture: np.ndarray, border_mask: np.ndarray) -> np.ndarray:
