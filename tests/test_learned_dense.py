@@ -174,10 +174,11 @@ def test_shipped_car_segmenter_finds_generated_cars_grabcut_alone_loses(car):
 
 @pytest.mark.skipif(not SHIPPED.is_file(), reason="no shipped car segmenter")
 def test_shipped_car_segmenter_cuts_a_dark_blob_grabcut_grew_into_behind_the_car(car):
-    # The example car over the mask benchmark's blob background (seed 0): a near-black blob, the
-    # windows' and tyres' colour, runs from behind the boot far up and out of the network's reach.
-    # GrabCut, taught that colour by the seeds near the car, grows into it; the second colour test
-    # on its own foreground cuts the far part off (without it: IoU 0.84, 9200 extra pixels).
+    # The example car over the mask benchmark's blob background (seed 0): a near-black purple blob
+    # runs from behind the boot far up and out of the network's reach. GrabCut, whose foreground
+    # model the dark windows and tyres pull toward dark colours, grows into it; the second colour
+    # test on its own foreground (the blob lies 30 Lab units off the car's colours) cuts the far
+    # part off (without it: IoU 0.84, 9200 extra pixels).
     _, family = car
     model = load_dense(SHIPPED, "segmenter", family)
     rgba = cv2.cvtColor(cv2.imread(str(EXAMPLE_PNG), cv2.IMREAD_UNCHANGED), cv2.COLOR_BGRA2RGBA)
