@@ -15,6 +15,7 @@ import frontal3d
 
 from frontal3d.cli import main
 from frontal3d.errors import ConfigError
+from frontal3d.eval_masks import composite_photo
 from frontal3d.family import load_family_yaml
 from frontal3d.learned_dense import dense_probabilities, family_region_names, load_dense
 from frontal3d.plugins import Plugins
@@ -24,6 +25,7 @@ from frontal3d.synth import render_sample
 
 SHIPPED = Path(__file__).resolve().parents[1] / "families" / "car" / "weights" / "segmenter.pt"
 EXAMPLE_JPG = Path(__file__).resolve().parents[1] / "examples" / "sportscar.jpg"
+EXAMPLE_PNG = EXAMPLE_JPG.with_suffix(".png")
 
 
 @pytest.fixture(scope="module")
@@ -168,6 +170,22 @@ def test_shipped_car_segmenter_finds_generated_cars_grabcut_alone_loses(car):
         alone, seeded = grabcut_segment(image), model.object_mask(image)
         assert _iou(alone, truth) < 0.4
         assert _iou(seeded, truth) > least
+
+
+@pytest.mark.skipif(not SHIPPED.is_file(), reason="no shipped car segmenter")
+def test_shipped_car_segmenter_cuts_a_dark_blob_grabcut_grew_into_behind_the_car(car):
+    # The example car over the mask benchmark's blob background (seed 0): a near-black purple blob
+    # runs from behind the boot far up and out of the network's reach. GrabCut, whose foreground
+    # model the dark windows and tyres pull toward dark colours, grows into it; the second colour
+    # test on its own foreground (the blob lies 30 Lab units off the car's colours) cuts the far
+    # part off (without it: IoU 0.84, 9200 extra pixels).
+    _, family = car
+    model = load_dense(SHIPPED, "segmenter", family)
+    rgba = cv2.cvtColor(cv2.imread(str(EXAMPLE_PNG), cv2.IMREAD_UNCHANGED), cv2.COLOR_BGRA2RGBA)
+    truth = rgba[..., 3] > 127
+    found = model.object_mask(composite_photo(rgba, "blobs", np.random.default_rng(0)))
+    assert _iou(found, truth) > 0.88
+    assert np.count_nonzero(found & ~truth) < 6500
 
 
 def _iou(found: np.ndarray | None, truth: np.ndarray) -> float:

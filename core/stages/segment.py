@@ -70,6 +70,12 @@ LEARNED_REACH = 0.03
 #: Median distance (Lab units) from the learned object's colours beyond which a seed piece
 #: out of the network's reach is something else (a blob behind the object).
 FOREIGN_COLOUR = 10.0
+#: The same distance for the pieces GrabCut grew beyond the network's reach: higher, since
+#: what it grew is often the object's own surface under other light (a bonnet's reflection,
+#: 12-15 on the shared car photos), while a blob it grew into lies far off (30-55).
+FOREIGN_GROWTH_COLOUR = 20.0
+#: GrabCut iterations of the second cut once foreign pieces of its foreground are removed.
+FOREIGN_ITERATIONS = 2
 
 
 def mask_from_alpha(image: np.ndarray) -> np.ndarray | None:
@@ -135,6 +141,8 @@ def _segment_unframed(rgb: np.ndarray, iterations: int, probability: np.ndarray 
     if init is None:
         return None
     _grabcut(flattened, init, iterations)
+    if small_probability is not None:
+        _cut_foreign_growth(init, small_probability, cv2.GaussianBlur(lab, (0, 0), 1.5), flattened)
     found = _clean(_foreground(init))
     if found.mean() < MIN_FOREGROUND or _touches_all_borders(found):
         return None
@@ -262,23 +270,37 @@ def _learned_seeds(salient: np.ndarray, probability: np.ndarray, colours: np.nda
     :func:`_foreign_pieces`. Its object (p > 0.5) is added; everything else is left to
     GrabCut as without the network.
     """
-    reach = max(2, round(LEARNED_REACH * max(probability.shape)))
-    disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1,) * 2)
-    near_object = cv2.dilate((probability >= LEARNED_UNLIKELY).astype(np.uint8), disc) > 0
+    near_object = _near_learned_object(probability)
     _, labels = cv2.connectedComponents(salient.astype(np.uint8), connectivity=8)
     kept = np.isin(labels, np.unique(labels[salient & near_object])) & salient
     kept &= ~_foreign_pieces(kept & ~near_object, kept & (probability > 0.5), colours)
     return kept | (probability > 0.5), salient & ~kept
 
 
-def _foreign_pieces(far: np.ndarray, core: np.ndarray, colours: np.ndarray) -> np.ndarray:
-    """The pieces of ``far`` whose median colour distance to ``core``'s colours exceeds :data:`FOREIGN_COLOUR`."""
+def _near_learned_object(probability: np.ndarray) -> np.ndarray:
+    """Within :data:`LEARNED_REACH` of the network's object (p >= :data:`LEARNED_UNLIKELY`)."""
+    return _dilated(probability >= LEARNED_UNLIKELY, max(2, round(LEARNED_REACH * max(probability.shape))))
+
+
+def _cut_foreign_growth(labels: np.ndarray, probability: np.ndarray, colours: np.ndarray, flattened: np.ndarray) -> None:
+    """GrabCut's foreground (``labels``, in place) without the pieces it grew beyond the network's
+    reach in colours not its object's (a blob's far side, once a seed near the object taught the
+    foreground model its colour): they become sure background and GrabCut cuts again."""
+    found = _foreground(labels)
+    foreign = _foreign_pieces(found & ~_near_learned_object(probability), found & (probability > 0.5), colours, FOREIGN_GROWTH_COLOUR)
+    if foreign.any():
+        labels[foreign] = cv2.GC_BGD
+        _grabcut(flattened, labels, FOREIGN_ITERATIONS)
+
+
+def _foreign_pieces(far: np.ndarray, core: np.ndarray, colours: np.ndarray, threshold: float = FOREIGN_COLOUR) -> np.ndarray:
+    """The pieces of ``far`` whose median colour distance to ``core``'s colours exceeds ``threshold``."""
     if not far.any() or np.count_nonzero(core) < MIN_OBJECT_PIXELS:
         return np.zeros_like(far)
     count, labels = cv2.connectedComponents(far.astype(np.uint8), connectivity=8)
     distance = _distance_to_colours(colours[far][:, None], colours[core])[:, 0]
     medians = np.asarray(ndimage.median(distance, labels[far], np.arange(1, count)))
-    return np.isin(labels, 1 + np.flatnonzero(medians > FOREIGN_COLOUR))
+    return np.isin(labels, 1 + np.flatnonzero(medians > threshold))
 
 
 def _smoother_than_background(texture: np.ndarray, border_mask: np.ndarray) -> np.ndarray:
