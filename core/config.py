@@ -29,6 +29,7 @@ CORE_FAMILY_SETTINGS: dict[str, Any] = {
     "shape_prior": False,  # cut GrabCut's mask again with the templates placed on it (2-3 s; helps cluttered backgrounds)
     "turned_margin": 1.0,  # frontal gate: reject when a template turned 30-90 deg fits the outline better by more than this IoU; 1 = off
     "mirror_margin": 1.0,  # frontal gate: reject when the outline is less mirror-symmetric about its axis than the template's by more than this IoU; 1 = off
+    "contact_pair_margin": 1.0,  # frontal gate: reject when both axles' ground contacts split into pairs further apart than this share of the length; 1 = off
     "parallax_margin": 1.0,  # frontal gate: reject when the neck runs beside the body's midline by more than this share of the body's width; 1 = off
     "depth_scale": "global",  # local, smooth, global or length (the object's length): how depth follows the warp
     "smooth_iterations": 10,  # Laplacian smoothing passes of the mesh

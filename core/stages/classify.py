@@ -21,6 +21,7 @@ from frontal3d.config import CORE_FAMILY_SETTINGS
 from frontal3d.family import Family
 from frontal3d.render import TemplateRenders
 from frontal3d.stages.align import Similarity, align_template, warp_labels
+from frontal3d.stages.ground_contacts import ContactEvidence, contact_evidence
 from frontal3d.stages.mirror_symmetry import MirrorEvidence, mirror_evidence
 from frontal3d.stages.neck_parallax import ParallaxEvidence, parallax_evidence
 from frontal3d.stages.turned_views import TurnEvidence, turn_evidence
@@ -67,7 +68,7 @@ class ClassifierContext:
     """What every classifier may look at; silhouette agreements are computed once and shared.
 
     ``settings`` needs ``max_angle_deg`` (rotation searched) and ``frontal_threshold``;
-    ``turned_margin``, ``mirror_margin`` and ``parallax_margin`` are optional (default: the
+    ``turned_margin``, ``mirror_margin``, ``parallax_margin`` and ``contact_pair_margin`` are optional (default: the
     core settings', which leave those tests off).
     """
 
@@ -80,6 +81,7 @@ class ClassifierContext:
     _turn_evidence: TurnEvidence | None = field(default=None, repr=False)
     _mirror_evidence: MirrorEvidence | None = field(default=None, repr=False)
     _parallax_evidence: ParallaxEvidence | None = field(default=None, repr=False)
+    _contact_evidence: ContactEvidence | None = field(default=None, repr=False)
 
     def agreement(self) -> dict[str, Agreement]:
         """Per subtype: IoU with the aligned template and the template -> image similarity."""
@@ -119,6 +121,13 @@ class ClassifierContext:
             best, found = self._best_agreement()
             self._parallax_evidence = parallax_evidence(self.object_mask, self.renders[best], found.similarity)
         return self._parallax_evidence
+
+    def contact_evidence(self) -> ContactEvidence:
+        """How the outline's ground contacts split into pairs, in the best-agreeing template's frame."""
+        if self._contact_evidence is None:
+            best, found = self._best_agreement()
+            self._contact_evidence = contact_evidence(self.object_mask, self.renders[best], found.similarity)
+        return self._contact_evidence
 
     def _best_agreement(self) -> tuple[str, Agreement]:
         """The subtype whose placed template overlaps the outline most, and its agreement."""
@@ -179,6 +188,10 @@ class FrontalGate:
       This catches a guitar turned about its neck by 30-60°, whose outline stays
       symmetric and plausible; off (1.0) unless the family sets it, and skipped, as the
       mirror test, when the outline is partly hidden.
+    - the outline's ground contacts may not split into a pair at both axles further apart
+      than ``contact_pair_margin`` of its length (see :mod:`frontal3d.stages.ground_contacts`).
+      This catches a car turned about image-up, whose far wheels come out beside the near
+      ones; off (1.0) unless the family sets it, skipped when the outline is partly hidden.
 
     ``frontal_threshold`` 0 switches the gate off (evaluation runs on known-frontal data).
     """
@@ -225,6 +238,14 @@ class FrontalGate:
                 reason = (f"the {family.name} looks turned sideways: its neck runs {abs(parallax.offset):.1%} of the body's width "
                           f"beside the body's midline (at most {parallax_margin:.1%} in a {family.canonical_view} view); "
                           f"this family needs {view}")
+                return Decision(name=self.name, label="not frontal", confidence=best, accepted=False, reason=reason)
+        contact_margin = float(context.settings.get("contact_pair_margin", CORE_FAMILY_SETTINGS["contact_pair_margin"]))
+        if threshold > 0 and contact_margin < 1.0 and not context.outline_partly_hidden():
+            contacts = context.contact_evidence()
+            if contacts.split > contact_margin:
+                reason = (f"the {family.name} looks turned sideways: it stands on {contacts.runs} separate ground contacts, the far "
+                          f"side's beside the near side's ({contacts.split:.0%} of its length apart; a {family.canonical_view} view "
+                          f"shows one per axle); this family needs {view}")
                 return Decision(name=self.name, label="not frontal", confidence=best, accepted=False, reason=reason)
         reason = f"the {family.name} matches a {family.canonical_view} view (silhouette agreement {best:.2f} >= {threshold:.2f})"
         return Decision(name=self.name, label="frontal", confidence=best, accepted=True, reason=reason)
