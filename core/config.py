@@ -31,6 +31,7 @@ CORE_FAMILY_SETTINGS: dict[str, Any] = {
     "mirror_margin": 1.0,  # frontal gate: reject when the outline is less mirror-symmetric about its axis than the template's by more than this IoU; 1 = off
     "contact_pair_margin": 1.0,  # frontal gate: reject when both axles' ground contacts split into pairs further apart than this share of the length; 1 = off
     "parallax_margin": 1.0,  # frontal gate: reject when the neck runs beside the body's midline by more than this share of the body's width; 1 = off
+    "rim_margin": 1.0,  # frontal gate: reject when the body shows a side-wall band along one side wider than along the opposite side by more than this share of the body's width; 1 = off
     "depth_scale": "global",  # local, smooth, global or length (the object's length): how depth follows the warp
     "smooth_iterations": 10,  # Laplacian smoothing passes of the mesh
     "max_vertices": 0,  # 0 = keep every pixel's vertex

@@ -2,7 +2,15 @@
 
 from __future__ import annotations
 
+import numpy as np
 import trimesh
+
+from frontal3d.family import Family
+
+#: The one-subtype guitar family :func:`slab_guitar` is judged in.
+SLAB_GUITAR_FAMILY = Family(name="guitar", subtypes=("classical",), canonical_view="front",
+                            regions={"classical": ("body", "neck")}, real_size={"classical": 1.0},
+                            view_hint="a front view of the guitar's face")
 
 
 def box_car() -> trimesh.Trimesh:
@@ -19,3 +27,19 @@ def box_car() -> trimesh.Trimesh:
             wheel.apply_translation([x, 0.35, z])
             parts.append(wheel)
     return trimesh.util.concatenate(parts)
+
+
+def slab_guitar() -> tuple[trimesh.Trimesh, np.ndarray]:
+    """A classical-guitar-like solid (neck +Y, face +Z): a 10 cm deep body of two bouts with
+    square-cut edges, a neck lying on the face, a headstock; and each face's region (0 body, 1 neck)."""
+    lower = trimesh.creation.cylinder(radius=0.19, height=0.1, sections=64)
+    lower.apply_translation([0.0, -0.3, 0.0])
+    upper = trimesh.creation.cylinder(radius=0.14, height=0.1, sections=64)
+    upper.apply_translation([0.0, -0.08, 0.0])
+    neck = trimesh.creation.box(extents=[0.055, 0.5, 0.05])
+    neck.apply_translation([0.0, 0.3, 0.055])
+    head = trimesh.creation.box(extents=[0.08, 0.16, 0.03])
+    head.apply_translation([0.0, 0.62, 0.055])
+    parts = [lower, upper, neck, head]
+    labels = np.concatenate([np.full(len(part.faces), label) for part, label in zip(parts, (0, 0, 1, 1))])
+    return trimesh.util.concatenate(parts), labels

@@ -8,7 +8,7 @@ import trimesh
 
 from frontal3d.eval_gate import turned
 from frontal3d.evaluate import render_frontal
-from frontal3d.family import Family, Template
+from frontal3d.family import Template
 from frontal3d.plugins import Plugins
 from frontal3d.render import TemplateRenders, render_template
 from frontal3d.stages.align import Similarity
@@ -16,36 +16,20 @@ from frontal3d.stages.classify import ClassifierContext, FrontalGate
 from frontal3d.stages.neck_parallax import parallax_evidence
 from frontal3d.stages.occlusion import VisibleAgreementContext
 
+from shapes import SLAB_GUITAR_FAMILY as FAMILY, slab_guitar
+
 #: Side of the template and of the views: fine enough for a neck a dozen pixels wide.
 RESOLUTION = 400
-FAMILY = Family(name="guitar", subtypes=("classical",), canonical_view="front", regions={"classical": ("body", "neck")},
-                real_size={"classical": 1.0}, view_hint="a front view of the guitar's face")
-
-
-def _guitar() -> tuple[trimesh.Trimesh, np.ndarray]:
-    """A classical-guitar-like solid (neck +Y, face +Z): a 10 cm deep body of two bouts, a neck lying
-    on the face, a headstock; and each face's region (0 body, 1 neck)."""
-    lower = trimesh.creation.cylinder(radius=0.19, height=0.1, sections=64)
-    lower.apply_translation([0.0, -0.3, 0.0])
-    upper = trimesh.creation.cylinder(radius=0.14, height=0.1, sections=64)
-    upper.apply_translation([0.0, -0.08, 0.0])
-    neck = trimesh.creation.box(extents=[0.055, 0.5, 0.05])
-    neck.apply_translation([0.0, 0.3, 0.055])
-    head = trimesh.creation.box(extents=[0.08, 0.16, 0.03])
-    head.apply_translation([0.0, 0.62, 0.055])
-    parts = [lower, upper, neck, head]
-    labels = np.concatenate([np.full(len(part.faces), label) for part, label in zip(parts, (0, 0, 1, 1))])
-    return trimesh.util.concatenate(parts), labels
 
 
 @pytest.fixture(scope="module")
 def guitar() -> trimesh.Trimesh:
-    return _guitar()[0]
+    return slab_guitar()[0]
 
 
 @pytest.fixture(scope="module")
 def template() -> TemplateRenders:
-    mesh, labels = _guitar()
+    mesh, labels = slab_guitar()
     return render_template(Template("guitar", "classical", mesh, labels, ("body", "neck")), RESOLUTION)
 
 

@@ -24,6 +24,7 @@ from frontal3d.stages.align import Similarity, align_template, warp_labels
 from frontal3d.stages.ground_contacts import ContactEvidence, contact_evidence
 from frontal3d.stages.mirror_symmetry import MirrorEvidence, mirror_evidence
 from frontal3d.stages.neck_parallax import ParallaxEvidence, parallax_evidence
+from frontal3d.stages.rim_band import RimEvidence, rim_evidence
 from frontal3d.stages.turned_views import TurnEvidence, turn_evidence
 
 #: Long side, in pixels, of the masks compared by the silhouette classifiers.
@@ -68,8 +69,8 @@ class ClassifierContext:
     """What every classifier may look at; silhouette agreements are computed once and shared.
 
     ``settings`` needs ``max_angle_deg`` (rotation searched) and ``frontal_threshold``;
-    ``turned_margin``, ``mirror_margin``, ``parallax_margin`` and ``contact_pair_margin`` are optional (default: the
-    core settings', which leave those tests off).
+    ``turned_margin``, ``mirror_margin``, ``parallax_margin``, ``rim_margin`` and ``contact_pair_margin``
+    are optional (default: the core settings', which leave those tests off).
     """
 
     image: np.ndarray
@@ -81,6 +82,7 @@ class ClassifierContext:
     _turn_evidence: TurnEvidence | None = field(default=None, repr=False)
     _mirror_evidence: MirrorEvidence | None = field(default=None, repr=False)
     _parallax_evidence: ParallaxEvidence | None = field(default=None, repr=False)
+    _rim_evidence: RimEvidence | None = field(default=None, repr=False)
     _contact_evidence: ContactEvidence | None = field(default=None, repr=False)
 
     def agreement(self) -> dict[str, Agreement]:
@@ -121,6 +123,13 @@ class ClassifierContext:
             best, found = self._best_agreement()
             self._parallax_evidence = parallax_evidence(self.object_mask, self.renders[best], found.similarity)
         return self._parallax_evidence
+
+    def rim_evidence(self) -> RimEvidence:
+        """Side-wall band widths along the body's outline, by direction, in the best-agreeing template's frame."""
+        if self._rim_evidence is None:
+            best, found = self._best_agreement()
+            self._rim_evidence = rim_evidence(self.image, self.object_mask, self.renders[best], found.similarity)
+        return self._rim_evidence
 
     def contact_evidence(self) -> ContactEvidence:
         """How the outline's ground contacts split into pairs, in the best-agreeing template's frame."""
@@ -165,7 +174,7 @@ def silhouette_agreement(object_mask: np.ndarray, renders: dict[str, TemplateRen
 class FrontalGate:
     """Rejects views too far from the family's canonical view (the paper allows about ±10°).
 
-    Four silhouette tests, all training-free:
+    Four silhouette tests and one image test, all training-free:
 
     - score = best over subtypes of IoU x :func:`foreshortening` must reach the family's
       ``frontal_threshold``: IoU alone barely drops when a car turns (a front view of a
@@ -188,6 +197,11 @@ class FrontalGate:
       This catches a guitar turned about its neck by 30-60°, whose outline stays
       symmetric and plausible; off (1.0) unless the family sets it, and skipped, as the
       mirror test, when the outline is partly hidden.
+    - the body's side wall may not show along one side of its outline wider than along
+      the opposite side by more than ``rim_margin`` of the body's width (see
+      :mod:`frontal3d.stages.rim_band`). This is the one test that sees a guitar pitched
+      (tipped about image-right), whose outline is just a shorter one; off (1.0) unless
+      the family sets it, and skipped when the outline is partly hidden.
     - the outline's ground contacts may not split into a pair at both axles further apart
       than ``contact_pair_margin`` of its length (see :mod:`frontal3d.stages.ground_contacts`).
       This catches a car turned about image-up, whose far wheels come out beside the near
@@ -238,6 +252,14 @@ class FrontalGate:
                 reason = (f"the {family.name} looks turned sideways: its neck runs {abs(parallax.offset):.1%} of the body's width "
                           f"beside the body's midline (at most {parallax_margin:.1%} in a {family.canonical_view} view); "
                           f"this family needs {view}")
+                return Decision(name=self.name, label="not frontal", confidence=best, accepted=False, reason=reason)
+        rim_margin = float(context.settings.get("rim_margin", CORE_FAMILY_SETTINGS["rim_margin"]))
+        if threshold > 0 and rim_margin < 1.0 and not context.outline_partly_hidden():
+            rim = context.rim_evidence()
+            if rim.asymmetry > rim_margin:
+                reason = (f"the {family.name} looks turned: its side wall shows along its {rim.side} edge as a band "
+                          f"{rim.asymmetry:.1%} of the body's width wider than along the opposite edge (at most "
+                          f"{rim_margin:.1%} in a {family.canonical_view} view); this family needs {view}")
                 return Decision(name=self.name, label="not frontal", confidence=best, accepted=False, reason=reason)
         contact_margin = float(context.settings.get("contact_pair_margin", CORE_FAMILY_SETTINGS["contact_pair_margin"]))
         if threshold > 0 and contact_margin < 1.0 and not context.outline_partly_hidden():
