@@ -484,6 +484,30 @@ def test_only_people_reaching_into_the_template_stand_in_front():
     assert not (found & object_mask).any()
 
 
+def test_a_person_over_the_lower_body_does_not_make_a_guitar_look_turned():
+    """The frontal gate's foreshortening compares the spreads of the object and the template:
+    a torso over the lower body shortens the object seen, and compared with the whole
+    template it read as a turn. Taken on the pixels seen on both, the occluded frontal guitar
+    scores as high as the unoccluded one, and a turned (squashed) guitar stays rejected."""
+    from frontal3d.stages.classify import FrontalGate
+
+    image, guitar = _drawn_guitar((240, 240))
+    family = Family(name="guitar", subtypes=("electric",), canonical_view="front", regions={"electric": ("body",)}, real_size={"electric": 1.0})
+    torso = np.zeros(guitar.shape, bool)
+    torso[160:, 60:180] = True
+
+    def gate(object_mask, hidden=None):
+        context = VisibleAgreementContext(image=image, object_mask=object_mask, family=family, renders={"electric": _flat_renders(guitar)},
+                                          settings={"max_angle_deg": 30.0, "frontal_threshold": 0.45}, hidden=hidden)
+        return FrontalGate().classify(context)
+
+    turned = np.zeros_like(guitar)
+    turned[:, 60:180] = cv2.resize(guitar.astype(np.uint8), (120, 240), interpolation=cv2.INTER_NEAREST) > 0
+    assert gate(guitar & ~torso, hidden_by(torso, guitar & ~torso)).confidence >= gate(guitar).confidence - 0.01  # 0.86 with the whole template
+    occluded_turn = gate(turned & ~torso, hidden_by(torso, turned & ~torso))
+    assert not occluded_turn.accepted and occluded_turn.confidence < 0.35
+
+
 class _StopAfterPeople(Exception):
     pass
 
