@@ -104,19 +104,32 @@ def detect_people(image: np.ndarray, object_mask: np.ndarray | None = None) -> n
     the occlusion stage keeps the pixels that reach into the aligned template (a torso
     in front of a guitar) and drops the others (a guitarist's body behind it).
     """
+    return detect_people_with_evidence(image, object_mask)[0]
+
+
+def detect_people_with_evidence(image: np.ndarray, object_mask: np.ndarray | None = None) -> tuple[np.ndarray | None, str | None]:
+    """:func:`detect_people`'s mask and what vouched for the person: "pose", "face" or
+    "segmenter" (the segmenter alone, sure of pixels off the object), None with no person.
+    The segmenter alone is as sure of some soft blobs in cluttered backgrounds, so callers
+    trust it less (see pipeline._people_in_front)."""
     models = _load_models()
     if models is None:
-        return None
+        return None, None
     small, (height, width) = _detection_image(image)
     with _native_logs_silenced():
         probability, pose_result = _person_and_pose(models, small)
         if pose_result is None:
-            return None
+            return None, None
         person = probability > PERSON_PROBABILITY
-        if (pose_result.pose_landmarks is None and not _face_off_object(models, small, person, object_mask)
-                and not _sure_person_off_object(probability, object_mask)):
-            return None
-    return cv2.resize(person.astype(np.uint8), (width, height), interpolation=cv2.INTER_NEAREST) > 0
+        if pose_result.pose_landmarks is not None:
+            evidence = "pose"
+        elif _face_off_object(models, small, person, object_mask):
+            evidence = "face"
+        elif _sure_person_off_object(probability, object_mask):
+            evidence = "segmenter"
+        else:
+            return None, None
+    return cv2.resize(person.astype(np.uint8), (width, height), interpolation=cv2.INTER_NEAREST) > 0, evidence
 
 
 def _face_off_object(models: _Models, small: np.ndarray, person: np.ndarray, object_mask: np.ndarray | None) -> bool:

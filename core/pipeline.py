@@ -36,6 +36,10 @@ CROP_MARGIN = 0.08
 #: How far beyond the object's bounding box (a fraction of its size) a person in front
 #: may hide its outline: the crop covers the people touching the object that far.
 PEOPLE_REACH = 0.25
+#: What must vouch for a person before the outline next to them stops voting on the template
+#: placement that judges who stands in front (see _people_in_front); the segmenter alone is
+#: as sure of some soft blobs beside objects, whose freed outline lets the placement drift.
+TRUSTED_PEOPLE_EVIDENCE = ("pose", "face")
 
 
 @dataclass
@@ -138,14 +142,18 @@ def reconstruct(
             if index == 0:
                 # What the user marked as occluders is explained already: a painted arm the
                 # segmenter takes for a person must not vouch for one (see occluders.OFF_OBJECT_SHARE).
-                people = people_detector.detect_people(rgb, object_mask if user_occluders is None else object_mask | user_occluders)
+                people, people_evidence = people_detector.detect_people_with_evidence(
+                    rgb, object_mask if user_occluders is None else object_mask | user_occluders)
+                if people_evidence:
+                    report.data["people_found_by"] = people_evidence
             touching = _touching(occluders, object_mask)
             # People touching the object may stand in front of it or behind it: the template
             # placed on the object tells which, here for the classifiers and the alignment,
             # and again once aligned (occlusion stage).
             people_near = _touching(people, object_mask)
             if people_near.any():
-                in_front = _people_in_front(plugins, fam, fam_settings, subtype, object_mask, _probable_shape(object_mask, touching), people_near)
+                in_front = _people_in_front(plugins, fam, fam_settings, subtype, object_mask, _probable_shape(object_mask, touching), people_near,
+                                            free_outline=people_evidence in TRUSTED_PEOPLE_EVIDENCE)
                 if in_front.any():
                     occluders = in_front if occluders is None else occluders | in_front
                     touching = _touching(occluders, object_mask)
@@ -453,12 +461,18 @@ def _refine_with_templates(plugins: Plugins, rgb: np.ndarray, object_mask: np.nd
 
 
 def _people_in_front(plugins: Plugins, fam: Family, settings: dict[str, Any], subtype: str | None,
-                     object_mask: np.ndarray, probable: np.ndarray, people_near: np.ndarray) -> np.ndarray:
+                     object_mask: np.ndarray, probable: np.ndarray, people_near: np.ndarray, free_outline: bool = False) -> np.ndarray:
     """The people's pixels in front of the object, judged by the best-fitting subtype's
     template placed on the object as seen: the classifiers and the alignment then leave
-    them out like found arms (a torso in front of a guitar is not a notch in its body)."""
+    them out like found arms (a torso in front of a guitar is not a notch in its body).
+
+    With ``free_outline`` the outline next to the people's pixels off the object does not
+    vote on that placement: it may be a person's edge (beside, behind or in front), which
+    would drag the template towards the person."""
     renders = _subtype_renders(plugins, fam, settings, subtype)
-    agreement = classify.silhouette_agreement(probable, renders, np.deg2rad(float(settings["max_angle_deg"])))
+    people_off = people_near & ~object_mask
+    hidden = occlusion.hidden_by(people_off, object_mask) if free_outline and people_off.any() else None
+    agreement = classify.silhouette_agreement(probable, renders, np.deg2rad(float(settings["max_angle_deg"])), hidden=hidden)
     best = max(agreement, key=lambda s: agreement[s].iou)
     placed = align.warp_mask(renders[best].mask, agreement[best].similarity, object_mask.shape)
     return occlusion.in_front(people_near, object_mask, placed)

@@ -16,7 +16,7 @@ from types import SimpleNamespace
 
 from frontal3d.family import Family
 from frontal3d import occluders
-from frontal3d.occluders import _detect, _Models, detect_arms_and_hands, detect_people
+from frontal3d.occluders import _detect, _Models, detect_arms_and_hands, detect_people, detect_people_with_evidence
 from frontal3d.pipeline import Report, _choose_object
 from frontal3d.render import TemplateRenders
 from frontal3d.stages.classify import SubtypeClassifier
@@ -410,6 +410,7 @@ def test_the_person_segmenter_alone_finds_nobody_without_a_pose(monkeypatch):
     assert detect_people(image) is None
     monkeypatch.setattr(occluders, "_load_models", lambda: models(SimpleNamespace(landmark=[])))
     assert np.array_equal(detect_people(image), blob)
+    assert detect_people_with_evidence(image)[1] == "pose"
 
 
 def test_a_face_off_the_object_vouches_for_a_person_the_pose_model_misses(monkeypatch):
@@ -431,8 +432,8 @@ def test_a_face_off_the_object_vouches_for_a_person_the_pose_model_misses(monkey
 
     image = np.zeros((120, 120, 3), np.uint8)
     monkeypatch.setattr(occluders, "_load_models", lambda: models((20, 15, 25, 25)))  # on the person's head
-    found = detect_people(image, guitar)
-    assert found is not None and found[person].all()
+    found, evidence = detect_people_with_evidence(image, guitar)
+    assert found is not None and found[person].all() and evidence == "face"
     # On the guitar's body, with the segmenter unsure of the person (sure of them, it alone would vouch).
     monkeypatch.setattr(occluders, "_load_models", lambda: models((72, 55, 25, 25), person_probability=0.7))
     assert detect_people(image, guitar) is None
@@ -453,8 +454,8 @@ def test_a_person_the_segmenter_is_sure_of_well_off_the_object_needs_no_pose_or_
 
     image = np.full((240, 240, 3), 40, np.uint8)
     monkeypatch.setattr(occluders, "_load_models", lambda: models(np.where(torso | guitar, 0.95, 0.0)))
-    found = detect_people(image, guitar)
-    assert found is not None and found[torso].all()
+    found, evidence = detect_people_with_evidence(image, guitar)
+    assert found is not None and found[torso].all() and evidence == "segmenter"
     for n, probability in enumerate((np.where(spill, 0.95, 0.0), np.where(guitar, 0.95, np.where(torso, 0.7, 0.0)))):
         image[0, 0] = 41 + n  # a new image each time: the last segmentation is not reused
         monkeypatch.setattr(occluders, "_load_models", lambda: models(probability))
@@ -483,6 +484,82 @@ def test_only_people_reaching_into_the_template_stand_in_front():
     assert not (found & object_mask).any()
 
 
+def test_a_person_over_the_lower_body_does_not_make_a_guitar_look_turned():
+    """The frontal gate's foreshortening compares the spreads of the object and the template:
+    a torso over the lower body shortens the object seen, and compared with the whole
+    template it read as a turn. Taken on the pixels seen on both, the occluded frontal guitar
+    scores as high as the unoccluded one, and a turned (squashed) guitar stays rejected."""
+    from frontal3d.stages.classify import FrontalGate
+
+    image, guitar = _drawn_guitar((240, 240))
+    family = Family(name="guitar", subtypes=("electric",), canonical_view="front", regions={"electric": ("body",)}, real_size={"electric": 1.0})
+    torso = np.zeros(guitar.shape, bool)
+    torso[160:, 60:180] = True
+
+    def gate(object_mask, hidden=None):
+        context = VisibleAgreementContext(image=image, object_mask=object_mask, family=family, renders={"electric": _flat_renders(guitar)},
+                                          settings={"max_angle_deg": 30.0, "frontal_threshold": 0.45}, hidden=hidden)
+        return FrontalGate().classify(context)
+
+    turned = np.zeros_like(guitar)
+    turned[:, 60:180] = cv2.resize(guitar.astype(np.uint8), (120, 240), interpolation=cv2.INTER_NEAREST) > 0
+    assert gate(guitar & ~torso, hidden_by(torso, guitar & ~torso)).confidence >= gate(guitar).confidence - 0.01  # 0.86 with the whole template
+    occluded_turn = gate(turned & ~torso, hidden_by(torso, turned & ~torso))
+    assert not occluded_turn.accepted and occluded_turn.confidence < 0.35
+
+
+class _StopAfterPeople(Exception):
+    pass
+
+
+def test_the_template_judging_who_is_in_front_is_placed_on_the_outline_away_from_people(monkeypatch):
+    """A torso over the lower half of a guitar's lower bout bites its outline: fitted to that
+    outline the template shrinks and misses a third of what the torso hides. With the outline
+    next to the person left out, it keeps the guitar's size and all of it is in front; a body
+    beside the guitar, behind it, stays behind either way."""
+    from frontal3d import pipeline
+
+    image, guitar = _drawn_guitar((240, 240))
+    family = Family(name="guitar", subtypes=("electric",), canonical_view="front", regions={"electric": ("body",)}, real_size={"electric": 1.0})
+    monkeypatch.setattr(pipeline, "_subtype_renders", lambda plugins, fam, settings, subtype: {"electric": _flat_renders(guitar)})
+
+    def judged(visible, person, free_outline):
+        return pipeline._people_in_front(None, family, {"max_angle_deg": 30.0}, None, visible, visible, person, free_outline=free_outline)
+
+    torso = np.zeros(guitar.shape, bool)
+    torso[180:, 40:200] = True
+    visible = guitar & ~torso
+    assert judged(visible, torso, free_outline=False)[guitar & torso].mean() < 0.8
+    assert judged(visible, torso, free_outline=True)[guitar & torso].all()
+    body_behind = np.zeros(guitar.shape, bool)
+    body_behind[60:, 125:] = True
+    body_behind &= ~guitar
+    assert not judged(guitar, body_behind, free_outline=True).any()
+
+
+def test_only_a_pose_or_a_face_frees_the_outline_next_to_people(monkeypatch):
+    """The segmenter alone is as sure of soft blobs beside objects as of people: such a "person"
+    must not free the outline the template is placed on (a clean car would then look turned)."""
+    from frontal3d import pipeline
+
+    image, guitar = _drawn_guitar((240, 240))
+    person = np.zeros(guitar.shape, bool)
+    person[150:, 130:] = True
+    person &= ~guitar
+    judged = {}
+
+    def record_and_stop(*args, free_outline=False):
+        judged["free_outline"] = free_outline
+        raise _StopAfterPeople
+
+    monkeypatch.setattr(pipeline, "_people_in_front", record_and_stop)
+    for evidence, freed in (("pose", True), ("face", True), ("segmenter", False)):
+        monkeypatch.setattr(occluders, "detect_people_with_evidence", lambda rgb, mask=None: (person, evidence))
+        with pytest.raises(_StopAfterPeople):
+            frontal3d.reconstruct(image, "guitar", mask=guitar)
+        assert judged["free_outline"] is freed, evidence
+
+
 def test_a_person_beside_the_object_does_not_count_against_the_front_view():
     """A torso over a guitar's lower body that is not recognised as in front leaves a bitten
     outline; the person's pixels off the guitar say nothing about the view, so the frontal gate
@@ -503,10 +580,6 @@ def test_a_person_beside_the_object_does_not_count_against_the_front_view():
     assert not FrontalGate().classify(plain).accepted  # agreement x foreshortening 0.47
     assert FrontalGate().classify(beside_person).accepted  # 0.77
     assert beside_person.agreement()["electric"].iou == pytest.approx(plain.agreement()["electric"].iou)
-
-
-class _StopAfterPeople(Exception):
-    pass
 
 
 def test_what_the_user_marks_as_occluders_does_not_vouch_for_a_person(monkeypatch):
@@ -530,10 +603,10 @@ def test_what_the_user_marks_as_occluders_does_not_vouch_for_a_person(monkeypatc
     found = {}
 
     def detect_and_stop(rgb, mask=None):
-        found["people"] = detect_people(rgb, mask)
+        found["people"] = detect_people_with_evidence(rgb, mask)[0]
         raise _StopAfterPeople
 
-    monkeypatch.setattr(occluders, "detect_people", detect_and_stop)
+    monkeypatch.setattr(occluders, "detect_people_with_evidence", detect_and_stop)
     with pytest.raises(_StopAfterPeople):
         frontal3d.reconstruct(image[..., :3], "car", mask=object_mask, occluder_mask=arm)
     assert found["people"] is None

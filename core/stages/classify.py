@@ -20,7 +20,7 @@ import numpy as np
 from frontal3d.config import CORE_FAMILY_SETTINGS
 from frontal3d.family import Family
 from frontal3d.render import TemplateRenders
-from frontal3d.stages.align import Similarity, align_template, warp_labels
+from frontal3d.stages.align import Similarity, align_template, warp_labels, warp_mask
 from frontal3d.stages.ground_contacts import ContactEvidence, contact_evidence
 from frontal3d.stages.mirror_symmetry import MirrorEvidence, mirror_evidence
 from frontal3d.stages.neck_parallax import ParallaxEvidence, parallax_evidence
@@ -102,6 +102,10 @@ class ClassifierContext:
     def outline_partly_hidden(self) -> bool:
         """Whether some of the outline may be hidden (by occluders or people beside the object)."""
         return False
+
+    def view_hidden_pixels(self) -> np.ndarray | None:
+        """The pixels the frontal gate leaves out (None: it sees them all)."""
+        return None
 
     def turn_evidence(self) -> TurnEvidence:
         """Best canonical-view vs best turned-view template agreement with the outline."""
@@ -216,7 +220,7 @@ class FrontalGate:
     def classify(self, context: ClassifierContext) -> Decision:
         agreement = context.view_agreement()
         scores = {
-            subtype: found.iou * foreshortening(context.object_mask, context.renders[subtype], found.similarity)
+            subtype: found.iou * foreshortening(context.object_mask, context.renders[subtype], found.similarity, context.view_hidden_pixels())
             for subtype, found in agreement.items()
         }
         best = max(scores.values())
@@ -362,16 +366,26 @@ def _normalised(mask: np.ndarray, hidden: np.ndarray | None = None) -> tuple[np.
     return small, Similarity(scale, 0.0, (0.5 - x0) * scale - 0.5, (0.5 - y0) * scale - 0.5), hidden_small
 
 
-def foreshortening(object_mask: np.ndarray, render: TemplateRenders, similarity: Similarity) -> float:
+def foreshortening(object_mask: np.ndarray, render: TemplateRenders, similarity: Similarity, hidden: np.ndarray | None = None) -> float:
     """How squashed the object is along one template axis relative to the other, in (0, 1].
 
     Turning an object away from the canonical view by an angle a shrinks its
     silhouette along one template axis by about cos(a) while the other keeps its
     length; the isotropic alignment cannot undo that. Measured as the ratio of the
     per-axis spreads (object over template, in the template's frame), smaller over larger.
+    With ``hidden`` pixels both spreads are taken outside them only (the object's and the
+    placed template's): a person over a guitar's lower body shortens the object seen, not
+    the view, and the template loses the same part.
     """
     to_template = similarity.inverse()
-    object_points = to_template.apply(np.argwhere(object_mask)[:, ::-1].astype(np.float64))
+    object_points = np.argwhere(object_mask)
     template_points = np.argwhere(render.mask)[:, ::-1].astype(np.float64)
+    if hidden is not None and hidden.any():
+        seen_object = np.argwhere(object_mask & ~hidden)
+        seen_template = np.argwhere(warp_mask(render.mask, similarity, object_mask.shape) & ~hidden)
+        if len(seen_object) >= 3 and len(seen_template) >= 3:
+            object_points = seen_object
+            template_points = to_template.apply(seen_template[:, ::-1].astype(np.float64))
+    object_points = to_template.apply(object_points[:, ::-1].astype(np.float64))
     spread = object_points.std(axis=0) / np.maximum(template_points.std(axis=0), 1e-9)
     return float(spread.min() / spread.max())

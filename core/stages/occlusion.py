@@ -143,9 +143,13 @@ class VisibleAgreementContext(ClassifierContext):
         if self.view_hidden is None:
             return self.agreement()
         if self._view_agreement is None:
-            hidden = self.view_hidden if self.hidden is None else self.view_hidden | self.hidden
-            self._view_agreement = self._seen(self.agreement(), hidden)
+            self._view_agreement = self._seen(self.agreement(), self.view_hidden_pixels())
         return self._view_agreement
+
+    def view_hidden_pixels(self) -> np.ndarray | None:
+        if self.view_hidden is None or self.hidden is None:
+            return self.hidden if self.view_hidden is None else self.view_hidden
+        return self.view_hidden | self.hidden
 
     def outline_partly_hidden(self) -> bool:
         return any(mask is not None and mask.any() for mask in (self.hidden, self.view_hidden))
