@@ -11,6 +11,7 @@ the templates turned (:mod:`frontal3d.stages.turned_views`).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -231,50 +232,72 @@ class FrontalGate:
             reason = (f"the {family.name} is not seen in a {family.canonical_view} view (silhouette agreement {best:.2f} < "
                       f"{threshold:.2f}); this family needs {view}")
             return Decision(name=self.name, label="not frontal", confidence=best, accepted=False, reason=reason)
-        margin = float(context.settings.get("turned_margin", CORE_FAMILY_SETTINGS["turned_margin"]))
-        if threshold > 0 and margin < 1.0:
-            evidence = context.turn_evidence()
-            if evidence.margin < -margin:
-                direction = "sideways" if evidence.turned_axis == "yaw" else "up or down"
-                reason = (f"the {family.name} looks turned about {abs(evidence.turned_degrees):.0f}° {direction} from a "
-                          f"{family.canonical_view} view (a turned template fits its outline better: {evidence.turned_iou:.2f} vs "
-                          f"{evidence.frontal_iou:.2f}); this family needs {view}")
-                return Decision(name=self.name, label="not frontal", confidence=best, accepted=False, reason=reason)
-        mirror_margin = float(context.settings.get("mirror_margin", CORE_FAMILY_SETTINGS["mirror_margin"]))
-        # An arm across the object, or a person beside it whose pixels may be the object's,
-        # makes any outline lopsided: a partly hidden one is not judged.
-        if threshold > 0 and mirror_margin < 1.0 and not context.outline_partly_hidden():
-            mirror = context.mirror_evidence()
-            if mirror.asymmetry > mirror_margin:
-                reason = (f"the {family.name} looks turned about its length axis: its outline is lopsided (mirror agreement "
-                          f"{mirror.object_iou:.2f} vs the template's {mirror.template_iou:.2f}); this family needs {view}")
-                return Decision(name=self.name, label="not frontal", confidence=best, accepted=False, reason=reason)
-        parallax_margin = float(context.settings.get("parallax_margin", CORE_FAMILY_SETTINGS["parallax_margin"]))
-        if threshold > 0 and parallax_margin < 1.0 and not context.outline_partly_hidden():
-            parallax = context.parallax_evidence()
-            if abs(parallax.offset) > parallax_margin:
-                reason = (f"the {family.name} looks turned sideways: its neck runs {abs(parallax.offset):.1%} of the body's width "
-                          f"beside the body's midline (at most {parallax_margin:.1%} in a {family.canonical_view} view); "
-                          f"this family needs {view}")
-                return Decision(name=self.name, label="not frontal", confidence=best, accepted=False, reason=reason)
-        rim_margin = float(context.settings.get("rim_margin", CORE_FAMILY_SETTINGS["rim_margin"]))
-        if threshold > 0 and rim_margin < 1.0 and not context.outline_partly_hidden():
-            rim = context.rim_evidence()
-            if rim.asymmetry > rim_margin:
-                reason = (f"the {family.name} looks turned: its side wall shows along its {rim.side} edge as a band "
-                          f"{rim.asymmetry:.1%} of the body's width wider than along the opposite edge (at most "
-                          f"{rim_margin:.1%} in a {family.canonical_view} view); this family needs {view}")
-                return Decision(name=self.name, label="not frontal", confidence=best, accepted=False, reason=reason)
-        contact_margin = float(context.settings.get("contact_pair_margin", CORE_FAMILY_SETTINGS["contact_pair_margin"]))
-        if threshold > 0 and contact_margin < 1.0 and not context.outline_partly_hidden():
-            contacts = context.contact_evidence()
-            if contacts.split > contact_margin:
-                reason = (f"the {family.name} looks turned sideways: it stands on {contacts.runs} separate ground contacts, the far "
-                          f"side's beside the near side's ({contacts.split:.0%} of its length apart; a {family.canonical_view} view "
-                          f"shows one per axle); this family needs {view}")
-                return Decision(name=self.name, label="not frontal", confidence=best, accepted=False, reason=reason)
+        if threshold > 0:
+            for setting, judge, whole_outline_only in TURN_TESTS:
+                margin = float(context.settings.get(setting, CORE_FAMILY_SETTINGS[setting]))
+                if margin >= 1.0 or (whole_outline_only and context.outline_partly_hidden()):
+                    continue
+                evidence = judge(context, margin)
+                if evidence:
+                    reason = f"the {family.name} looks turned{evidence}; this family needs {view}"
+                    return Decision(name=self.name, label="not frontal", confidence=best, accepted=False, reason=reason)
         reason = f"the {family.name} matches a {family.canonical_view} view (silhouette agreement {best:.2f} >= {threshold:.2f})"
         return Decision(name=self.name, label="frontal", confidence=best, accepted=True, reason=reason)
+
+
+def _turned_template(context: ClassifierContext, margin: float) -> str | None:
+    evidence = context.turn_evidence()
+    if evidence.margin >= -margin:
+        return None
+    direction = "sideways" if evidence.turned_axis == "yaw" else "up or down"
+    return (f" about {abs(evidence.turned_degrees):.0f}° {direction} from a {context.family.canonical_view} view (a turned "
+            f"template fits its outline better: {evidence.turned_iou:.2f} vs {evidence.frontal_iou:.2f})")
+
+
+def _lopsided(context: ClassifierContext, margin: float) -> str | None:
+    mirror = context.mirror_evidence()
+    if mirror.asymmetry <= margin:
+        return None
+    return (f" about its length axis: its outline is lopsided (mirror agreement {mirror.object_iou:.2f} vs the "
+            f"template's {mirror.template_iou:.2f})")
+
+
+def _neck_beside_midline(context: ClassifierContext, margin: float) -> str | None:
+    parallax = context.parallax_evidence()
+    if abs(parallax.offset) <= margin:
+        return None
+    return (f" sideways: its neck runs {abs(parallax.offset):.1%} of the body's width beside the body's midline "
+            f"(at most {margin:.1%} in a {context.family.canonical_view} view)")
+
+
+def _side_wall_shows(context: ClassifierContext, margin: float) -> str | None:
+    rim = context.rim_evidence()
+    if rim.asymmetry <= margin:
+        return None
+    return (f": its side wall shows along its {rim.side} edge as a band {rim.asymmetry:.1%} of the body's width wider "
+            f"than along the opposite edge (at most {margin:.1%} in a {context.family.canonical_view} view)")
+
+
+def _far_wheels_show(context: ClassifierContext, margin: float) -> str | None:
+    contacts = context.contact_evidence()
+    if contacts.split <= margin:
+        return None
+    return (f" sideways: it stands on {contacts.runs} separate ground contacts, the far side's beside the near side's "
+            f"({contacts.split:.0%} of its length apart; a {context.family.canonical_view} view shows one per axle)")
+
+
+#: The frontal gate's tests after the agreement threshold, in order: (setting holding the margin,
+#: judge returning what gives the turn away or None, skipped when the outline is partly hidden).
+#: An arm across the object, or a person beside it whose pixels may be the object's, makes an
+#: outline lopsided, cuts a neck or a wheel, or hides a side wall: only whole outlines are judged
+#: by those. A margin of 1 or more switches a test off.
+TURN_TESTS: tuple[tuple[str, Callable[[ClassifierContext, float], str | None], bool], ...] = (
+    ("turned_margin", _turned_template, False),
+    ("mirror_margin", _lopsided, True),
+    ("parallax_margin", _neck_beside_midline, True),
+    ("rim_margin", _side_wall_shows, True),
+    ("contact_pair_margin", _far_wheels_show, True),
+)
 
 
 class SubtypeClassifier:
