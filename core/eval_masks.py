@@ -137,7 +137,7 @@ def evaluate_masks(plugins: Plugins, family: str, renders_dir: Path, out_dir: Pa
             report = Report()
             start = time.perf_counter()
             try:
-                found, _ = segment_object(plugins, photo, fam, fam_settings, report=report)
+                found = segment_object(plugins, photo, fam, fam_settings, report=report).object_mask
                 error = ""
             except Frontal3DError as exc:
                 found, error = np.zeros_like(truth), str(exc)

@@ -14,7 +14,7 @@ import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any, Callable, Iterator, NamedTuple
 
 import cv2
 import numpy as np
@@ -36,6 +36,9 @@ CROP_MARGIN = 0.08
 #: How far beyond the object's bounding box (a fraction of its size) a person in front
 #: may hide its outline: the crop covers the people touching the object that far.
 PEOPLE_REACH = 0.25
+#: How much longer than the shortest way between a piece a person cut off and the object a
+#: path through the gap may be and still lie under the person (pipeline._gaps_to).
+GAP_SLACK = 1.2
 #: What must vouch for a person before the outline next to them stops voting on the template
 #: placement that judges who stands in front (see _people_in_front); the segmenter alone is
 #: as sure of some soft blobs beside objects, whose freed outline lets the placement drift.
@@ -138,7 +141,7 @@ def reconstruct(
     for index, fam in enumerate(candidates):
         fam_settings = plugins.settings(fam.name, settings)
         with report.stage(f"segment[{fam.name}]" if len(candidates) > 1 else "segment", progress):
-            object_mask, occluders = segment_object(plugins, rgb, fam, fam_settings, user_mask, user_occluders, subtype, report)
+            object_mask, occluders, segmented = segment_object(plugins, rgb, fam, fam_settings, user_mask, user_occluders, subtype, report)
             if index == 0:
                 # What the user marked as occluders is explained already: a painted arm the
                 # segmenter takes for a person must not vouch for one (see occluders.OFF_OBJECT_SHARE).
@@ -154,6 +157,14 @@ def reconstruct(
             if people_near.any():
                 in_front = _people_in_front(plugins, fam, fam_settings, subtype, object_mask, _probable_shape(object_mask, touching), people_near,
                                             free_outline=people_evidence in TRUSTED_PEOPLE_EVIDENCE)
+                bridged = _pieces_across_people(segmented, people, in_front, object_mask) if in_front.any() else in_front
+                if bridged.any():
+                    # A headstock beyond a person over the neck: judged again with the whole object.
+                    object_mask = object_mask | bridged
+                    people_near, touching = _touching(people, object_mask), _touching(occluders, object_mask)
+                    in_front = _people_in_front(plugins, fam, fam_settings, subtype, object_mask, _probable_shape(object_mask, touching), people_near,
+                                                free_outline=people_evidence in TRUSTED_PEOPLE_EVIDENCE)
+                    in_front |= _gaps_to(bridged, object_mask & ~bridged)
                 if in_front.any():
                     occluders = in_front if occluders is None else occluders | in_front
                     touching = _touching(occluders, object_mask)
@@ -326,20 +337,29 @@ def _reconstruct_shape_and_texture(
     return Reconstruction(textured=textured, landmarks=landmarks, report=report.data, maps=maps)
 
 
+class Segmentation(NamedTuple):
+    """What :func:`segment_object` finds: the chosen object, the occluders and every piece
+    the segmenter found (people found later may join more of them to the object)."""
+
+    object_mask: np.ndarray
+    occluders: np.ndarray | None
+    segmented: np.ndarray
+
+
 def segment_object(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dict[str, Any], user_mask: np.ndarray | None = None,
                    user_occluders: np.ndarray | None = None, subtype: str | None = None,
-                   report: Report | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+                   report: Report | None = None) -> Segmentation:
     """The object's mask and the occluders, as reconstruction finds them before classifying:
     the segmenter chain, the occluder detectors, the object chosen among the pieces and,
     with the ``shape_prior`` setting, GrabCut's mask cut again with the templates.
-    The mask benchmark (frontal3d.eval_masks) scores exactly this."""
+    The mask benchmark (frontal3d.eval_masks) scores exactly this object mask."""
     report = report or Report()
     found = _segment(plugins, rgb, fam, settings, user_mask, report)
     occluders = occlusion.find_occluders(plugins, rgb, found, settings, user_occluders)
     object_mask = _choose_object(found, occluders, fam, report)
     if settings["shape_prior"] and report.data["segmenter"] == "GrabCut (training-free)":
         object_mask = _refine_with_templates(plugins, rgb, object_mask, occluders, fam, settings, subtype, report)
-    return object_mask, occluders
+    return Segmentation(object_mask, occluders, found)
 
 
 def _segment(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dict[str, Any], user_mask: np.ndarray | None, report: Report) -> np.ndarray:
@@ -432,6 +452,36 @@ def _pieces_across_occluders(found: np.ndarray, occluders: np.ndarray | None, ch
             return joined
         joined |= grown
         touching = _touching(occluders, chosen | joined)
+
+
+def _pieces_across_people(segmented: np.ndarray, people: np.ndarray, in_front: np.ndarray, object_mask: np.ndarray) -> np.ndarray:
+    """Pieces of ``segmented`` left out of ``object_mask`` that a person standing in front of
+    it also touches: the person, not background, cut them off (the headstock beyond an
+    astronaut over the neck). People are found after the pieces are chosen, so
+    ``_choose_object`` could not join them. The person is the whole connected stretch of
+    people's pixels off the object holding in-front pixels, not just those pixels: the
+    in-front pixels are where the template placed without the piece expects the object.
+    Only whole pieces join: what a shape prior cut off the chosen piece stays off."""
+    _count, pieces = cv2.connectedComponents(segmented.astype(np.uint8), connectivity=8)
+    left_out = segmented & ~np.isin(pieces, np.unique(pieces[object_mask]))
+    off_object = (np.asarray(people, dtype=bool) | in_front) & ~object_mask
+    _count, labels = cv2.connectedComponents(off_object.astype(np.uint8), connectivity=8)
+    in_front_people = np.isin(labels, np.unique(labels[in_front & off_object]))
+    return _pieces_across_occluders(left_out, in_front_people & off_object, object_mask)
+
+
+def _gaps_to(pieces: np.ndarray, object_mask: np.ndarray) -> np.ndarray:
+    """The background between each piece and the object, hidden like the person who cut the
+    piece off (a dark helmet over the neck the person segmenter loses): the pixels whose
+    distances to both add up to at most GAP_SLACK times the shortest way across."""
+    to_object = cv2.distanceTransform((~object_mask).astype(np.uint8), cv2.DIST_L2, 5)
+    gaps = np.zeros_like(object_mask)
+    count, labels = cv2.connectedComponents(pieces.astype(np.uint8), connectivity=8)
+    for label in range(1, count):
+        piece = labels == label
+        across = to_object + cv2.distanceTransform((~piece).astype(np.uint8), cv2.DIST_L2, 5)
+        gaps |= across <= GAP_SLACK * to_object[piece].min()
+    return gaps & ~object_mask & ~pieces
 
 
 def _touching(occluders: np.ndarray | None, mask: np.ndarray) -> np.ndarray:

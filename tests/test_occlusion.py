@@ -614,3 +614,62 @@ def test_what_the_user_marks_as_occluders_does_not_vouch_for_a_person(monkeypatc
     with pytest.raises(_StopAfterPeople):
         frontal3d.reconstruct(image[..., :3], "car", mask=object_mask)
     assert found["people"] is not None and found["people"][arm & ~object_mask].mean() > 0.9
+
+
+def _person_over_the_neck(guitar: np.ndarray) -> np.ndarray:
+    """A person-shaped occluder (head over the neck, shoulders and torso below it, off to the
+    left) cutting a drawn guitar's neck in two, the headstock left beyond the head."""
+    rows, cols = np.nonzero(guitar)
+    neck_column = int(np.median(cols[rows < rows.min() + 20]))
+    height = rows.max() - rows.min()
+    person = np.zeros(guitar.shape, np.uint8)
+    head_row = rows.min() + int(0.33 * height)
+    cv2.circle(person, (neck_column, head_row), int(0.12 * height), 1, -1)  # wider than the 8 % "near" reach
+    cv2.ellipse(person, (neck_column - int(0.25 * height), head_row + int(0.25 * height)), (int(0.22 * height), int(0.17 * height)), 0, 0, 360, 1, -1)
+    person[head_row : head_row + int(0.3 * height), neck_column - int(0.45 * height) : neck_column - int(0.1 * height)] = 1
+    return person > 0
+
+
+def test_a_headstock_beyond_a_person_in_front_is_rebuilt(monkeypatch):
+    """A person in front of a guitar's neck cuts it in two, and people are found only after the
+    object's pieces are chosen: the headstock beyond her head must still join the guitar (the
+    mesh keeps the guitar's proportions) instead of being left out as another object."""
+    image, guitar = _drawn_guitar((320, 320))
+    person = _person_over_the_neck(guitar)
+    visible = guitar & ~person
+    pieces = sorted(_pieces(visible), reverse=True)
+    assert len(pieces) == 2 and pieces[1] < 0.15 * pieces[0]  # too small to be kept on its own
+    composite = image.copy()
+    composite[person] = (200, 150, 120)
+    monkeypatch.setattr(occluders, "detect_people_with_evidence", lambda rgb, mask=None: (person, "pose"))
+
+    clean = frontal3d.reconstruct(image, "guitar", mask=guitar)
+    occluded = frontal3d.reconstruct(composite, "guitar", mask=visible)
+
+    def height_by_width(mesh):
+        return mesh.extents[1] / mesh.extents[0]
+
+    assert height_by_width(occluded.mesh) == pytest.approx(height_by_width(clean.mesh), rel=0.02)  # 6.8 % short without the headstock
+    assert abs(occluded.report["alignment"]["angle"]) < np.deg2rad(5)
+
+
+def test_only_pieces_a_person_in_front_touches_join_the_object():
+    """Beyond a person in front of the neck the headstock joins; a second guitar elsewhere, and a
+    piece touching only a person who is not in front (no pixel of theirs judged so), stay out."""
+    from frontal3d.pipeline import _gaps_to, _pieces_across_people
+
+    shape = (200, 300)
+    body, headstock, other_guitar = np.zeros(shape, bool), np.zeros(shape, bool), np.zeros(shape, bool)
+    body[120:190, 40:110] = True
+    headstock[20:60, 65:85] = True
+    other_guitar[60:190, 220:290] = True
+    person = np.zeros(shape, bool)
+    person[60:120, 30:120] = True  # between the headstock and the body
+    in_front = person & (np.arange(shape[1]) < 90)  # where the template expected the neck
+    segmented = body | headstock | other_guitar
+
+    joined = _pieces_across_people(segmented, person, in_front, body)
+    assert joined[headstock].all() and not joined[other_guitar].any() and not joined[body].any()
+    assert not _pieces_across_people(segmented, person, np.zeros(shape, bool), body).any()
+    gap = _gaps_to(headstock, body)
+    assert gap[60:120, 70:80].all() and not gap[:, 150:].any() and not (gap & segmented).any()
