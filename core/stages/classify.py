@@ -246,6 +246,7 @@ class FrontalGate:
 
 
 def _turned_template(context: ClassifierContext, margin: float) -> str | None:
+    """A template turned 30-90° fits the outline better (:mod:`frontal3d.stages.turned_views`)."""
     evidence = context.turn_evidence()
     if evidence.margin >= -margin:
         return None
@@ -255,6 +256,7 @@ def _turned_template(context: ClassifierContext, margin: float) -> str | None:
 
 
 def _lopsided(context: ClassifierContext, margin: float) -> str | None:
+    """The outline is less mirror-symmetric than the template (:mod:`frontal3d.stages.mirror_symmetry`)."""
     mirror = context.mirror_evidence()
     if mirror.asymmetry <= margin:
         return None
@@ -263,6 +265,7 @@ def _lopsided(context: ClassifierContext, margin: float) -> str | None:
 
 
 def _neck_beside_midline(context: ClassifierContext, margin: float) -> str | None:
+    """The neck runs beside the body's midline (:mod:`frontal3d.stages.neck_parallax`)."""
     parallax = context.parallax_evidence()
     if abs(parallax.offset) <= margin:
         return None
@@ -271,6 +274,7 @@ def _neck_beside_midline(context: ClassifierContext, margin: float) -> str | Non
 
 
 def _side_wall_shows(context: ClassifierContext, margin: float) -> str | None:
+    """The body shows its side wall along one edge (:mod:`frontal3d.stages.rim_band`)."""
     rim = context.rim_evidence()
     if rim.asymmetry <= margin:
         return None
@@ -279,6 +283,7 @@ def _side_wall_shows(context: ClassifierContext, margin: float) -> str | None:
 
 
 def _far_wheels_show(context: ClassifierContext, margin: float) -> str | None:
+    """Both axles stand on a pair of contacts (:mod:`frontal3d.stages.ground_contacts`)."""
     contacts = context.contact_evidence()
     if contacts.split <= margin:
         return None
