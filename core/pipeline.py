@@ -149,25 +149,13 @@ def reconstruct(
                     rgb, object_mask if user_occluders is None else object_mask | user_occluders)
                 if people_evidence:
                     report.data["people_found_by"] = people_evidence
-            touching = _touching(occluders, object_mask)
             # People touching the object may stand in front of it or behind it: the template
             # placed on the object tells which, here for the classifiers and the alignment,
             # and again once aligned (occlusion stage).
-            people_near = _touching(people, object_mask)
-            if people_near.any():
-                in_front = _people_in_front(plugins, fam, fam_settings, subtype, object_mask, _probable_shape(object_mask, touching), people_near,
-                                            free_outline=people_evidence in TRUSTED_PEOPLE_EVIDENCE)
-                bridged = _pieces_across_people(segmented, people, in_front, object_mask) if in_front.any() else in_front
-                if bridged.any():
-                    # A headstock beyond a person over the neck: judged again with the whole object.
-                    object_mask = object_mask | bridged
-                    people_near, touching = _touching(people, object_mask), _touching(occluders, object_mask)
-                    in_front = _people_in_front(plugins, fam, fam_settings, subtype, object_mask, _probable_shape(object_mask, touching), people_near,
-                                                free_outline=people_evidence in TRUSTED_PEOPLE_EVIDENCE)
-                    in_front |= _gaps_to(bridged, object_mask & ~bridged)
-                if in_front.any():
-                    occluders = in_front if occluders is None else occluders | in_front
-                    touching = _touching(occluders, object_mask)
+            object_mask, people_near, occluders = _with_people_judged(
+                plugins, fam, fam_settings, subtype, object_mask, segmented, people, occluders,
+                trusted=people_evidence in TRUSTED_PEOPLE_EVIDENCE)
+            touching = _touching(occluders, object_mask)
             probable = _probable_shape(object_mask, touching)
         with report.stage(f"classify[{fam.name}]" if len(candidates) > 1 else "classify", progress):
             try:
@@ -452,6 +440,33 @@ def _pieces_across_occluders(found: np.ndarray, occluders: np.ndarray | None, ch
             return joined
         joined |= grown
         touching = _touching(occluders, chosen | joined)
+
+
+def _with_people_judged(plugins: Plugins, fam: Family, settings: dict[str, Any], subtype: str | None, object_mask: np.ndarray,
+                        segmented: np.ndarray, people: np.ndarray | None, occluders: np.ndarray | None,
+                        trusted: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """The object mask, the people touching it and the occluders once those people are judged
+    in front or behind (:func:`_people_in_front`; ``trusted``: a pose or a face vouches for
+    them). Pieces a person in front cut off join the object, which is then judged again, and
+    the gap to each such piece counts as in front too."""
+    people_near = _touching(people, object_mask)
+    if not people_near.any():
+        return object_mask, people_near, occluders
+
+    def in_front_of(mask: np.ndarray, near: np.ndarray) -> np.ndarray:
+        probable = _probable_shape(mask, _touching(occluders, mask))
+        return _people_in_front(plugins, fam, settings, subtype, mask, probable, near, free_outline=trusted)
+
+    in_front = in_front_of(object_mask, people_near)
+    bridged = _pieces_across_people(segmented, people, in_front, object_mask) if in_front.any() else in_front
+    if bridged.any():
+        # A headstock beyond a person over the neck: judged again with the whole object.
+        object_mask = object_mask | bridged
+        people_near = _touching(people, object_mask)
+        in_front = in_front_of(object_mask, people_near) | _gaps_to(bridged, object_mask & ~bridged)
+    if in_front.any():
+        occluders = in_front if occluders is None else occluders | in_front
+    return object_mask, people_near, occluders
 
 
 def _pieces_across_people(segmented: np.ndarray, people: np.ndarray, in_front: np.ndarray, object_mask: np.ndarray) -> np.ndarray:

@@ -304,13 +304,17 @@ def _blob(shape: tuple[int, int], centre: tuple[int, int], axes: tuple[int, int]
     return cv2.GaussianBlur(blob, (0, 0), 3)[..., None]
 
 
-def test_a_learned_probability_keeps_a_separate_coloured_blob_out():
-    rng = np.random.default_rng(9)
+def _car_before_a_blue_blob(seed: int, centre: tuple[int, int], axes: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A red car-like shape over a pale background with a soft blue blob: (image, truth, blob weight)."""
     shape = (480, 640)
     truth = _car_like_mask(shape)
-    blob = _blob(shape, (540, 130), (70, 50))
+    blob = _blob(shape, centre, axes)
     background = np.full(shape + (3,), (205.0, 210, 200)) * (1 - blob) + blob * np.array([40.0, 60, 170])
-    image = _composite(background, truth, (170, 40, 35), rng)
+    return _composite(background, truth, (170, 40, 35), np.random.default_rng(seed)), truth, blob
+
+
+def test_a_learned_probability_keeps_a_separate_coloured_blob_out():
+    image, truth, blob = _car_before_a_blue_blob(9, (540, 130), (70, 50))
     alone = grabcut_segment(image)
     seeded = grabcut_segment(image, object_probability=_network_like_probability(truth))
     assert (alone & (blob[..., 0] > 0.5)).sum() > 1000  # the colour cues take the blob for an object too
@@ -321,12 +325,7 @@ def test_a_learned_probability_keeps_a_separate_coloured_blob_out():
 def test_a_learned_probability_cuts_off_a_blob_touching_the_object():
     # The blob lies behind the roof: the colour cues see one seed region, the network
     # sees the blob's far side as background, and the blob is not the car's colour.
-    rng = np.random.default_rng(10)
-    shape = (480, 640)
-    truth = _car_like_mask(shape)
-    blob = _blob(shape, (400, 170), (90, 70))
-    background = np.full(shape + (3,), (205.0, 210, 200)) * (1 - blob) + blob * np.array([40.0, 60, 170])
-    image = _composite(background, truth, (170, 40, 35), rng)
+    image, truth, blob = _car_before_a_blue_blob(10, (400, 170), (90, 70))
     beyond = (blob[..., 0] > 0.5) & ~truth
     fooled = grabcut_segment(image, object_probability=_network_like_probability(truth | beyond))
     seeded = grabcut_segment(image, object_probability=_network_like_probability(truth))
