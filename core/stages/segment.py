@@ -76,6 +76,9 @@ FOREIGN_COLOUR = 10.0
 FOREIGN_GROWTH_COLOUR = 20.0
 #: GrabCut iterations of the second cut once foreign pieces of its foreground are removed.
 FOREIGN_ITERATIONS = 2
+#: At most this many such cuts: a cut can grow the foreground further into the same blob
+#: (its colour model changed), and the next cut takes that back.
+FOREIGN_ROUNDS = 3
 
 
 def mask_from_alpha(image: np.ndarray) -> np.ndarray | None:
@@ -285,10 +288,14 @@ def _near_learned_object(probability: np.ndarray) -> np.ndarray:
 def _cut_foreign_growth(labels: np.ndarray, probability: np.ndarray, colours: np.ndarray, flattened: np.ndarray) -> None:
     """GrabCut's foreground (``labels``, in place) without the pieces it grew beyond the network's
     reach in colours not its object's (a blob's far side, once a seed near the object taught the
-    foreground model its colour): they become sure background and GrabCut cuts again."""
-    found = _foreground(labels)
-    foreign = _foreign_pieces(found & ~_near_learned_object(probability), found & (probability > 0.5), colours, FOREIGN_GROWTH_COLOUR)
-    if foreign.any():
+    foreground model its colour): they become sure background and GrabCut cuts again, up to
+    :data:`FOREIGN_ROUNDS` times while it grows such pieces anew."""
+    far_off = ~_near_learned_object(probability)
+    for _ in range(FOREIGN_ROUNDS):
+        found = _foreground(labels)
+        foreign = _foreign_pieces(found & far_off, found & (probability > 0.5), colours, FOREIGN_GROWTH_COLOUR)
+        if not foreign.any():
+            return
         labels[foreign] = cv2.GC_BGD
         _grabcut(flattened, labels, FOREIGN_ITERATIONS)
 
