@@ -63,12 +63,13 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true", help="show tracebacks of unexpected errors")
     sub = parser.add_subparsers(title="commands", metavar="COMMAND")
 
-    p = sub.add_parser("reconstruct", help="reconstruct 3D meshes from photos", description="Reconstruct a textured, watertight mesh from each frontal photo. Writes OUTDIR/<image stem>/model.glb, model.obj (+ .mtl, textures), preview.png and report.json.")
+    p = sub.add_parser("reconstruct", help="reconstruct 3D meshes from photos", description="Reconstruct a textured, watertight mesh from each frontal photo. Writes OUTDIR/<image stem>/model.glb, model.obj (+ .mtl, textures), preview.png and report.json. Of several separate objects in a photo, the largest the classifier chain accepts is reconstructed; --all reconstructs each, into OUTDIR/<image stem>_<k>/ (k = 1 for the largest).")
     p.add_argument("images", nargs="+", type=Path, metavar="IMAGE", help="input photo(s): PNG/JPG; an RGBA PNG's alpha is used as the object mask")
     p.add_argument("--family", default="auto", help="family name (see `frontal3d families`), or auto to let the classifier chain pick (default)")
     p.add_argument("--subtype", help="skip the subtype classifier and use this subtype's template")
     p.add_argument("--mask", type=Path, help="object mask (non-zero = object); only with a single IMAGE")
     p.add_argument("--occluder-mask", type=Path, help="mask of things in front of the object (hands, stands); only with a single IMAGE")
+    p.add_argument("--all", action="store_true", help="reconstruct each separate object the classifier chain accepts, into OUTDIR/<stem>_<k>/ (k = 1 for the largest)")
     p.add_argument("-o", "--out", type=Path, default=Path("frontal3d-out"), help="output folder (default: ./frontal3d-out)")
     _add_set_option(p, "working_resolution=400")
     p.add_argument("-v", "--verbose", action="store_true", help="log each stage and write intermediate maps to OUTDIR/<stem>/debug/")
@@ -210,7 +211,7 @@ def _parse_sets(pairs: list[str]) -> dict[str, Any]:
 
 
 def _cmd_reconstruct(args: argparse.Namespace) -> int:
-    from frontal3d.pipeline import reconstruct
+    from frontal3d.pipeline import reconstruct, reconstruct_all
     from frontal3d.progress import StageProgress
 
     if len(args.images) > 1 and (args.mask or args.occluder_mask):
@@ -222,21 +223,23 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
         for image in args.images:
             progress.start(image.name)
             try:
-                result = reconstruct(
-                    image, args.family, mask=args.mask, occluder_mask=args.occluder_mask,
-                    subtype=args.subtype, plugins=plugins, progress=progress.stage, **settings,
-                )
-                paths = result.save(args.out / image.stem, debug=args.verbose)
+                arguments = dict(mask=args.mask, occluder_mask=args.occluder_mask, subtype=args.subtype, plugins=plugins, progress=progress.stage, **settings)
+                if args.all:
+                    results = reconstruct_all(image, args.family, **arguments)
+                    folders = [args.out / f"{image.stem}_{k}" for k in range(1, len(results) + 1)]
+                else:
+                    results, folders = [reconstruct(image, args.family, **arguments)], [args.out / image.stem]
+                saved = [(result.report, result.save(folder, debug=args.verbose)) for result, folder in zip(results, folders)]
             except Frontal3DError as exc:
                 if len(args.images) == 1:
                     raise
                 failures += 1
                 progress.write(f"frontal3d: error: {image}: {exc}")
                 continue
-            report = result.report
-            progress.write(f"{image}: {report['family']}/{report['subtype']} -> {paths['glb']} ({report['mesh']['faces']} faces, {report['seconds_total']:.1f} s)")
-            for warning in report["warnings"]:
-                progress.write(f"  warning: {warning}")
+            for report, paths in saved:
+                progress.write(f"{image}: {report['family']}/{report['subtype']} -> {paths['glb']} ({report['mesh']['faces']} faces, {report['seconds_total']:.1f} s)")
+                for warning in report["warnings"]:
+                    progress.write(f"  warning: {warning}")
     return 2 if failures else 0
 
 

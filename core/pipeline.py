@@ -8,6 +8,7 @@ stage and collects the decisions and warnings into ``report.json``.
 
 from __future__ import annotations
 
+import copy
 import logging
 import resource
 import time
@@ -119,9 +120,57 @@ def reconstruct(
     ``family`` is a family name or None/"auto" to let the classifier chain pick;
     ``mask`` and ``occluder_mask`` are optional user masks (arrays or paths);
     ``subtype`` skips the subtype classifier; ``settings`` override the family's
-    settings (plugins.toml keys). Raises a :class:`frontal3d.errors.Frontal3DError`
-    with a one-line reason on bad input or a rejected view.
+    settings (plugins.toml keys). Of several separate objects, the largest the classifier
+    chain accepts is reconstructed (:func:`reconstruct_all`: each). Raises a
+    :class:`frontal3d.errors.Frontal3DError` with a one-line reason on bad input or a
+    rejected view.
     """
+    return _reconstruct_objects(image, family, mask, occluder_mask, subtype, plugins, progress, settings, every=False)[0]
+
+
+def reconstruct_all(
+    image: np.ndarray | str | Path,
+    family: str | None = None,
+    *,
+    mask: np.ndarray | str | Path | None = None,
+    occluder_mask: np.ndarray | str | Path | None = None,
+    subtype: str | None = None,
+    plugins: Plugins | None = None,
+    progress: Callable[[str], None] | None = None,
+    **settings: Any,
+) -> list[Reconstruction]:
+    """:func:`reconstruct` for each separate object of the photo the classifier chain accepts,
+    largest first (with ``family`` auto: of the family that fits the first best). Raises as
+    :func:`reconstruct` when it accepts none."""
+    return _reconstruct_objects(image, family, mask, occluder_mask, subtype, plugins, progress, settings, every=True)
+
+
+@dataclass
+class _Accepted:
+    """One object the classifier chain accepted, with what shape reconstruction needs of it."""
+
+    rank: int  # among the separate objects, largest first
+    object_mask: np.ndarray
+    probable: np.ndarray
+    occluders: np.ndarray | None
+    people_near: np.ndarray
+    decisions: list[classify.Decision]
+    subtype: str
+    renders_by_subtype: dict[str, TemplateRenders]
+    context: classify.ClassifierContext
+    report: Report
+
+    @property
+    def frontal_confidence(self) -> float:
+        return max((d.confidence for d in self.decisions if d.name == "frontal"), default=0.0)
+
+
+def _reconstruct_objects(image: np.ndarray | str | Path, family: str | None, mask: np.ndarray | str | Path | None,
+                         occluder_mask: np.ndarray | str | Path | None, subtype: str | None, plugins: Plugins | None,
+                         progress: Callable[[str], None] | None, settings: dict[str, Any], every: bool) -> list[Reconstruction]:
+    """Segment with each candidate family, judge its separate objects largest first (the first
+    accepted only, unless ``every``), keep the family whose first accepted object the frontal
+    gate is surest of, and reconstruct its accepted objects."""
     plugins = plugins or Plugins()
     report = Report()
     name = str(image) if isinstance(image, (str, Path)) else "image"
@@ -135,52 +184,97 @@ def reconstruct(
     candidates = [plugins.family(family)] if family not in (None, "auto") else list(plugins.families.values())
     if not candidates:
         raise UnknownFamilyError("no family plugin is installed (see `frontal3d plugins`)")
-    chosen = None
+    several_families = len(candidates) > 1
+    chosen: tuple[Family, dict[str, Any], list[_Accepted], list[tuple[int, str]], int] | None = None
     rejections: list[str] = []
     people: np.ndarray | None = None
+    people_evidence: list[str] = []
     for index, fam in enumerate(candidates):
         fam_settings = plugins.settings(fam.name, settings)
-        with report.stage(f"segment[{fam.name}]" if len(candidates) > 1 else "segment", progress):
-            object_mask, occluders, segmented = segment_object(plugins, rgb, fam, fam_settings, user_mask, user_occluders, subtype, report)
+        with report.stage(f"segment[{fam.name}]" if several_families else "segment", progress):
+            segmentation = segment_object(plugins, rgb, fam, fam_settings, user_mask, user_occluders, subtype, report)
             if index == 0:
                 # What the user marked as occluders is explained already: a painted arm the
                 # segmenter takes for a person must not vouch for one (see occluders.OFF_OBJECT_SHARE).
                 people, people_evidence = people_detector.detect_people_with_evidence(
-                    rgb, object_mask if user_occluders is None else object_mask | user_occluders)
+                    rgb, segmentation.object_mask if user_occluders is None else segmentation.object_mask | user_occluders)
                 if people_evidence:
                     report.data["people_found_by"] = people_evidence
-            # People touching the object may stand in front of it or behind it: the template
-            # placed on the object tells which, here for the classifiers and the alignment,
-            # and again once aligned (occlusion stage).
-            object_mask, people_near, occluders = _with_people_judged(
-                plugins, fam, fam_settings, subtype, object_mask, segmented, people, occluders,
-                trusted=people_evidence in TRUSTED_PEOPLE_EVIDENCE)
-            touching = _touching(occluders, object_mask)
-            probable = _probable_shape(object_mask, touching)
-        with report.stage(f"classify[{fam.name}]" if len(candidates) > 1 else "classify", progress):
-            try:
-                hidden = occlusion.hidden_by(touching, object_mask) if touching.any() else None
-                # Whether the outline next to a person is the object's is unknown, in front or
-                # behind: the person's pixels off the object do not vote on the view (on the
-                # object they are often the held object itself).
-                people_off = people_near & ~object_mask
-                view_hidden = occlusion.hidden_by(people_off, object_mask) if people_off.any() else None
-                decisions, picked_subtype, renders_by_subtype, context = run_classifiers(plugins, rgb, probable, fam, fam_settings, subtype, hidden, view_hidden)
-            except NotFrontalError as exc:
-                if len(candidates) == 1:
-                    raise
-                rejections.append(f"{fam.name}: {exc}")
-                continue
-        score = max((d.confidence for d in decisions if d.name == "frontal"), default=0.0)
-        if chosen is None or score > chosen[0]:
-            chosen = (score, fam, fam_settings, object_mask, probable, occluders, people_near, decisions, picked_subtype, renders_by_subtype, context)
+        accepted: list[_Accepted] = []
+        turned_down: list[tuple[int, NotFrontalError]] = []
+        for rank, object_mask in enumerate(segmentation.objects):
+            trial = copy.deepcopy(report)
+            with trial.stage(f"classify[{fam.name}]" if several_families else "classify", progress):
+                try:
+                    accepted.append(_judge_object(plugins, rgb, fam, fam_settings, subtype, rank, object_mask, segmentation,
+                                                  people, people_evidence in TRUSTED_PEOPLE_EVIDENCE, trial))
+                except NotFrontalError as exc:
+                    turned_down.append((rank, exc))
+                    continue
+            if not every:
+                break
+        if not accepted:
+            if not several_families:
+                raise turned_down[0][1]
+            rejections.append(f"{fam.name}: {turned_down[0][1]}")
+            continue
+        if chosen is None or accepted[0].frontal_confidence > chosen[2][0].frontal_confidence:
+            chosen = (fam, fam_settings, accepted, [(rank, str(exc)) for rank, exc in turned_down], len(segmentation.objects))
     if chosen is None:
         raise NotFrontalError("no installed family accepts this image: " + "; ".join(rejections))
-    _, fam, fam_settings, object_mask, probable, occluders, people_near, decisions, picked_subtype, renders_by_subtype, context = chosen
-    report.data["family"] = fam.name
-    report.data["subtype"] = picked_subtype
-    report.data["decisions"] = [d.to_dict() for d in decisions]
-    return _reconstruct_shape_and_texture(plugins, rgb, object_mask, probable, occluders, people_near, fam, picked_subtype, fam_settings, renders_by_subtype[picked_subtype], report, progress, context)
+    fam, fam_settings, accepted, turned_down, found = chosen
+    results = []
+    for candidate in accepted:
+        _note_object_choice(candidate, found, turned_down, every, first=candidate is accepted[0])
+        candidate.report.data["family"] = fam.name
+        candidate.report.data["subtype"] = candidate.subtype
+        candidate.report.data["decisions"] = [d.to_dict() for d in candidate.decisions]
+        results.append(_reconstruct_shape_and_texture(
+            plugins, rgb, candidate.object_mask, candidate.probable, candidate.occluders, candidate.people_near, fam,
+            candidate.subtype, fam_settings, candidate.renders_by_subtype[candidate.subtype], candidate.report, progress,
+            candidate.context))
+    return results
+
+
+def _judge_object(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dict[str, Any], subtype: str | None, rank: int,
+                  object_mask: np.ndarray, segmentation: Segmentation, people: np.ndarray | None, trusted_people: bool,
+                  report: Report) -> _Accepted:
+    """Run the classifier chain on one of the separate objects; raises :class:`NotFrontalError`."""
+    # People touching the object may stand in front of it or behind it: the template
+    # placed on the object tells which, here for the classifiers and the alignment,
+    # and again once aligned (occlusion stage).
+    object_mask, people_near, occluders = _with_people_judged(
+        plugins, fam, settings, subtype, object_mask, segmentation.segmented, people, segmentation.occluders, trusted=trusted_people)
+    touching = _touching(occluders, object_mask)
+    probable = _probable_shape(object_mask, touching)
+    hidden = occlusion.hidden_by(touching, object_mask) if touching.any() else None
+    # Whether the outline next to a person is the object's is unknown, in front or
+    # behind: the person's pixels off the object do not vote on the view (on the
+    # object they are often the held object itself).
+    people_off = people_near & ~object_mask
+    view_hidden = occlusion.hidden_by(people_off, object_mask) if people_off.any() else None
+    decisions, picked_subtype, renders_by_subtype, context = run_classifiers(plugins, rgb, probable, fam, settings, subtype, hidden, view_hidden)
+    return _Accepted(rank, object_mask, probable, occluders, people_near, decisions, picked_subtype, renders_by_subtype, context, report)
+
+
+def _note_object_choice(candidate: _Accepted, found: int, turned_down: list[tuple[int, str]], every: bool, first: bool) -> None:
+    """Say in the report which of the separate objects this is and why others were left out
+    (with ``every``, the first object's report names all that were)."""
+    report = candidate.report
+    report.data["objects"] = {"found": found, "rank": candidate.rank + 1,
+                              "turned_down": [{"rank": rank + 1, "reason": reason} for rank, reason in turned_down]}
+    pixels = int(candidate.object_mask.sum())
+    if every and found > 1:
+        report.warn(f"{found} separate objects found; this is object {candidate.rank + 1} by size ({pixels} pixels)")
+        for rank, reason in turned_down if first else ():
+            report.warn(f"object {rank + 1} by size turned down by the classifier chain: {reason}")
+    elif candidate.rank > 0:
+        report.warn(f"{found} separate objects found; the {candidate.rank} larger one(s) turned down by the classifier chain "
+                    f"({turned_down[0][1]}); reconstructing object {candidate.rank + 1} by size ({pixels} pixels)")
+    elif found > 1:
+        report.warn(f"{found} separate objects found; reconstructing the largest ({pixels} pixels; --all reconstructs each)")
+    if _touches_border(candidate.object_mask):
+        report.warn("the object touches the image border: parts of it may be cut off")
 
 
 def _reconstruct_shape_and_texture(
@@ -326,12 +420,17 @@ def _reconstruct_shape_and_texture(
 
 
 class Segmentation(NamedTuple):
-    """What :func:`segment_object` finds: the chosen object, the occluders and every piece
-    the segmenter found (people found later may join more of them to the object)."""
+    """What :func:`segment_object` finds: the separate objects (largest first), the occluders
+    and every piece the segmenter found (people found later may join more of them to an object)."""
 
-    object_mask: np.ndarray
+    objects: list[np.ndarray]
     occluders: np.ndarray | None
     segmented: np.ndarray
+
+    @property
+    def object_mask(self) -> np.ndarray:
+        """The largest object."""
+        return self.objects[0]
 
 
 def segment_object(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dict[str, Any], user_mask: np.ndarray | None = None,
@@ -344,10 +443,10 @@ def segment_object(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dic
     report = report or Report()
     found = _segment(plugins, rgb, fam, settings, user_mask, report)
     occluders = occlusion.find_occluders(plugins, rgb, found, settings, user_occluders)
-    object_mask = _choose_object(found, occluders, fam, report)
+    objects = separate_objects(found, occluders, fam)
     if settings["shape_prior"] and report.data["segmenter"] == "GrabCut (training-free)":
-        object_mask = _refine_with_templates(plugins, rgb, object_mask, occluders, fam, settings, subtype, report)
-    return Segmentation(object_mask, occluders, found)
+        objects = [_refine_with_templates(plugins, rgb, object_mask, occluders, fam, settings, subtype, report) for object_mask in objects]
+    return Segmentation(objects, occluders, found)
 
 
 def _segment(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dict[str, Any], user_mask: np.ndarray | None, report: Report) -> np.ndarray:
@@ -385,24 +484,25 @@ def _segmenter_name(impl: Any, user_mask: np.ndarray | None, settings: dict[str,
     return "user mask" if user_mask is not None else "alpha channel"
 
 
-def _choose_object(found: np.ndarray, occluders: np.ndarray | None, fam: Family, report: Report) -> np.ndarray:
-    """The object to reconstruct: the largest piece and the pieces near it (or joined to it
-    through an occluder, like a guitar neck an arm cuts off); other objects are left out."""
-    objects = segment.split_objects(found)
-    if not objects:
+def separate_objects(found: np.ndarray, occluders: np.ndarray | None, fam: Family) -> list[np.ndarray]:
+    """The separate objects of the segmented area, largest first: each is the largest piece
+    left and the pieces near it (or joined to it through an occluder, like a guitar neck an
+    arm cuts off)."""
+    pieces = segment.split_objects(found)
+    if not pieces:
         raise NoObjectError(f"no {fam.name} found in the image: the segmented area is too small")
-    chosen, others = _group_near_largest(objects, occluders)
-    chosen |= _pieces_across_occluders(found, occluders, chosen)
-    if others:
-        report.warn(f"{others + 1} separate objects found; reconstructing the largest ({int(chosen.sum())} pixels)")
-    if _touches_border(chosen):
-        report.warn("the object touches the image border: parts of it may be cut off")
-    return chosen
+    objects = []
+    while pieces:
+        chosen, pieces = _group_near_largest(pieces, occluders)
+        chosen |= _pieces_across_occluders(found, occluders, chosen)
+        pieces = [piece for piece in pieces if not (piece & chosen).any()]
+        objects.append(chosen)
+    return objects
 
 
-def _group_near_largest(objects: list[np.ndarray], occluders: np.ndarray | None = None) -> tuple[np.ndarray, int]:
+def _group_near_largest(objects: list[np.ndarray], occluders: np.ndarray | None = None) -> tuple[np.ndarray, list[np.ndarray]]:
     """The largest component plus every component near it (a wheel or tail the mask split
-    off belongs to the same object); returns that mask and how many objects were left out.
+    off belongs to the same object), and the components left out, largest first.
 
     "Near" is within 8 % of the largest component's longest side, counted across any
     occluder touching the largest component.
@@ -412,12 +512,12 @@ def _group_near_largest(objects: list[np.ndarray], occluders: np.ndarray | None 
     radius = max(2, int(0.08 * max(np.ptp(ys), np.ptp(xs))))
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
     reach = cv2.dilate((chosen | _touching(occluders, chosen)).astype(np.uint8), kernel) > 0
-    left_out = 0
+    left_out = []
     for component in objects[1:]:
         if (component & reach).any():
             chosen |= component
         else:
-            left_out += 1
+            left_out.append(component)
     return chosen, left_out
 
 
@@ -473,7 +573,7 @@ def _pieces_across_people(segmented: np.ndarray, people: np.ndarray, in_front: n
     """Pieces of ``segmented`` left out of ``object_mask`` that a person standing in front of
     it also touches: the person, not background, cut them off (the headstock beyond an
     astronaut over the neck). People are found after the pieces are chosen, so
-    ``_choose_object`` could not join them. The person is the whole connected stretch of
+    :func:`separate_objects` could not join them. The person is the whole connected stretch of
     people's pixels off the object holding in-front pixels, not just those pixels: the
     in-front pixels are where the template placed without the piece expects the object.
     Only whole pieces join: what a shape prior cut off the chosen piece stays off."""

@@ -17,7 +17,7 @@ from types import SimpleNamespace
 from frontal3d.family import Family
 from frontal3d import occluders
 from frontal3d.occluders import _detect, _Models, detect_arms_and_hands, detect_people, detect_people_with_evidence
-from frontal3d.pipeline import Report, _choose_object
+from frontal3d.pipeline import separate_objects
 from frontal3d.render import TemplateRenders
 from frontal3d.stages.classify import SubtypeClassifier
 from frontal3d.stages.occlusion import VisibleAgreementContext, hidden_by, in_front, occluded_at_full_resolution, rebuild_silhouette
@@ -250,8 +250,8 @@ def test_a_piece_an_arm_cuts_off_is_kept_however_small():
 
     family = Family(name="guitar", subtypes=("x",), canonical_view="front", regions={"x": ("body",)}, real_size={"x": 1.0})
 
-    assert _choose_object(visible, arm, family, Report())[tail].all()
-    assert not _choose_object(visible, None, family, Report())[tail].any()  # without the arm it is a speck
+    assert separate_objects(visible, arm, family)[0][tail].all()
+    assert not separate_objects(visible, None, family)[0][tail].any()  # without the arm it is a speck
 
 
 def test_a_headstock_beyond_a_forearm_and_its_hand_is_kept():
@@ -271,7 +271,7 @@ def test_a_headstock_beyond_a_forearm_and_its_hand_is_kept():
     assert headstock.sum() > 100 and neck_bit.any() and len(_pieces(occluders)) == 2
     family = Family(name="guitar", subtypes=("x",), canonical_view="front", regions={"x": ("body",)}, real_size={"x": 1.0})
 
-    chosen = _choose_object(visible, occluders, family, Report())
+    chosen = separate_objects(visible, occluders, family)[0]
 
     assert chosen[neck_bit].all() and chosen[headstock].all()
 

@@ -83,6 +83,54 @@ def test_mask_with_a_hole_and_a_separate_blob(plugins):
     assert not any("touches the image border" in w for w in result.report["warnings"])
 
 
+def _side_by_side(*rgbas: np.ndarray, gap: int = 100) -> np.ndarray:
+    """RGBA renders placed left to right on one transparent canvas, far enough apart to stay separate objects."""
+    height = max(rgba.shape[0] for rgba in rgbas)
+    canvas = np.zeros((height, sum(rgba.shape[1] for rgba in rgbas) + gap * (len(rgbas) - 1), 4), np.uint8)
+    left = 0
+    for rgba in rgbas:
+        canvas[: rgba.shape[0], left : left + rgba.shape[1]] = rgba
+        left += rgba.shape[1] + gap
+    return canvas
+
+
+def test_all_reconstructs_each_separate_object_largest_first(plugins, tmp_path):
+    import cv2
+
+    big, _ = _template_photo(plugins, "car", "sedan")
+    small = cv2.resize(big, None, fx=0.7, fy=0.7, interpolation=cv2.INTER_NEAREST)
+    photo = _side_by_side(small, big)
+    results = frontal3d.reconstruct_all(photo, "car", subtype="sedan", plugins=plugins)
+    assert [r.report["objects"]["rank"] for r in results] == [1, 2]
+    assert all(r.mesh.is_watertight for r in results)
+    pixels = [int(w.split("(")[-1].split()[0]) for r in results for w in r.report["warnings"] if "separate objects" in w]
+    assert pixels[0] == pytest.approx((big[..., 3] > 0).sum(), rel=0.05)
+    assert pixels[1] == pytest.approx((small[..., 3] > 0).sum(), rel=0.05)
+    # the CLI writes one folder per object, and only the largest without --all
+    image = tmp_path / "two_cars.png"
+    cv2.imwrite(str(image), cv2.cvtColor(photo, cv2.COLOR_RGBA2BGRA))
+    assert main(["reconstruct", str(image), "--family", "car", "--subtype", "sedan", "--all", "-o", str(tmp_path / "all")]) == 0
+    assert sorted(p.name for p in (tmp_path / "all").iterdir()) == ["two_cars_1", "two_cars_2"]
+    assert (tmp_path / "all" / "two_cars_2" / "model.glb").is_file()
+    assert main(["reconstruct", str(image), "--family", "car", "--subtype", "sedan", "-o", str(tmp_path / "one")]) == 0
+    assert sorted(p.name for p in (tmp_path / "one").iterdir()) == ["two_cars"]
+
+
+def test_a_larger_object_the_chain_turns_down_gives_way_to_the_next(plugins):
+    """A car seen from the front, larger than a side-on car beside it: the side-on car is reconstructed."""
+    side, _ = _template_photo(plugins, "car", "sedan")
+    front, _ = _template_photo(plugins, "car", "sedan", rotate_y_deg=90)  # fills its frame: 3.5 times the side view's pixels
+    assert (front[..., 3] > 0).sum() > (side[..., 3] > 0).sum()
+    result = frontal3d.reconstruct(_side_by_side(front, side), "car", plugins=plugins)
+    objects = result.report["objects"]
+    assert objects["found"] == 2 and objects["rank"] == 2
+    assert "side view" in objects["turned_down"][0]["reason"]
+    assert any("turned down by the classifier chain" in w for w in result.report["warnings"])
+    assert result.mesh.is_watertight
+    with pytest.raises(NotFrontalError, match="side view"):
+        frontal3d.reconstruct(front, "car", plugins=plugins)
+
+
 def test_side_on_view_is_rejected_with_a_reason(plugins):
     rgba, _ = _template_photo(plugins, "car", "sedan", rotate_y_deg=90)
     with pytest.raises(NotFrontalError, match="side view"):
