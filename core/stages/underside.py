@@ -57,20 +57,19 @@ MIN_COLUMNS = 5
 
 @dataclass(frozen=True)
 class UndersideEvidence:
-    """Median height of the dark band along the outline's bottom between the wheels (share of the length), columns read."""
+    """Median height of the dark band along the outline's bottom between the wheels, as a share of its length."""
 
     band: float
-    columns: int
 
 
 def underside_evidence(image: np.ndarray, object_mask: np.ndarray, render: TemplateRenders,
                        similarity: Similarity) -> UndersideEvidence:
     """The floor band between the wheels, seen in the aligned template's frame (0: no evidence)."""
     if WHEEL_REGION not in render.region_names:
-        return UndersideEvidence(0.0, 0)
+        return UndersideEvidence(0.0)
     wheel_columns = np.flatnonzero((render.front_regions == render.region_names.index(WHEEL_REGION)).any(axis=0))
     if wheel_columns.size < 2:
-        return UndersideEvidence(0.0, 0)
+        return UndersideEvidence(0.0)
     gap = int(np.argmax(np.diff(wheel_columns)))
     rear, front = wheel_columns[gap], wheel_columns[gap + 1]
     inverse, shape = similarity.inverse(), render.mask.shape
@@ -92,14 +91,14 @@ def floor_band(lightness: np.ndarray, mask: np.ndarray, x0: float, x1: float,
     read below ``ceiling`` (per column, the lowest row not read; -1: up to the outline's top)."""
     object_columns = np.flatnonzero(mask.any(axis=0))
     if object_columns.size < 2:
-        return UndersideEvidence(0.0, 0)
+        return UndersideEvidence(0.0)
     length = float(np.ptp(object_columns) + 1)
     reach, look = max(3, int(BAND_REACH * length)), max(2, int(round(LOOK_DEPTH * length)))
     columns = np.arange(int(np.ceil(x0)), int(np.floor(x1)) + 1)
     columns = columns[(columns >= 0) & (columns < mask.shape[1])]
     columns = columns[mask[:, columns].sum(axis=0) >= 2 * look + 4]
     if columns.size < MIN_COLUMNS:
-        return UndersideEvidence(0.0, int(columns.size))
+        return UndersideEvidence(0.0)
     bottom = mask.shape[0] - 1 - np.argmax(mask[::-1, columns], axis=0)
     top = np.argmax(mask[:, columns], axis=0)
     if ceiling is not None:
@@ -119,4 +118,4 @@ def floor_band(lightness: np.ndarray, mask: np.ndarray, x0: float, x1: float,
     contrast = np.where(crisp, above - below, -np.inf)
     best = np.argmax(contrast, axis=1)
     bands = np.where(contrast[np.arange(len(columns)), best] >= LIGHTNESS_STEP, depths[best], 0)
-    return UndersideEvidence(float(np.median(bands)) / length, int(columns.size))
+    return UndersideEvidence(float(np.median(bands)) / length)
