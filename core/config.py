@@ -30,6 +30,7 @@ CORE_FAMILY_SETTINGS: dict[str, Any] = {
     "turned_margin": 1.0,  # frontal gate: reject when a template turned 30-90 deg fits the outline better by more than this IoU; 1 = off
     "mirror_margin": 1.0,  # frontal gate: reject when the outline is less mirror-symmetric about its axis than the template's by more than this IoU; 1 = off
     "contact_pair_margin": 1.0,  # frontal gate: reject when both axles' ground contacts split into pairs further apart than this share of the length; 1 = off
+    "underside_margin": 1.0,  # frontal gate: reject when the outline's bottom between the wheels shows a dark band (a floor) taller than this share of the length; 1 = off
     "parallax_margin": 1.0,  # frontal gate: reject when the neck runs beside the body's midline by more than this share of the body's width; 1 = off
     "rim_margin": 1.0,  # frontal gate: reject when the body shows a side-wall band along one side wider than along the opposite side by more than this share of the body's width; 1 = off
     "depth_scale": "global",  # local, smooth, global or length (the object's length): how depth follows the warp

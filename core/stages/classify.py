@@ -27,6 +27,7 @@ from frontal3d.stages.mirror_symmetry import MirrorEvidence, mirror_evidence
 from frontal3d.stages.neck_parallax import ParallaxEvidence, parallax_evidence
 from frontal3d.stages.rim_band import RimEvidence, rim_evidence
 from frontal3d.stages.turned_views import TurnEvidence, turn_evidence
+from frontal3d.stages.underside import UndersideEvidence, underside_evidence
 
 #: Long side, in pixels, of the masks compared by the silhouette classifiers.
 AGREEMENT_SIZE = 128
@@ -70,8 +71,8 @@ class ClassifierContext:
     """What every classifier may look at; silhouette agreements are computed once and shared.
 
     ``settings`` needs ``max_angle_deg`` (rotation searched) and ``frontal_threshold``;
-    ``turned_margin``, ``mirror_margin``, ``parallax_margin``, ``rim_margin`` and ``contact_pair_margin``
-    are optional (default: the core settings', which leave those tests off).
+    ``turned_margin``, ``mirror_margin``, ``parallax_margin``, ``rim_margin``, ``contact_pair_margin`` and
+    ``underside_margin`` are optional (default: the core settings', which leave those tests off).
     """
 
     image: np.ndarray
@@ -85,6 +86,7 @@ class ClassifierContext:
     _parallax_evidence: ParallaxEvidence | None = field(default=None, repr=False)
     _rim_evidence: RimEvidence | None = field(default=None, repr=False)
     _contact_evidence: ContactEvidence | None = field(default=None, repr=False)
+    _underside_evidence: UndersideEvidence | None = field(default=None, repr=False)
 
     def agreement(self) -> dict[str, Agreement]:
         """Per subtype: IoU with the aligned template and the template -> image similarity."""
@@ -143,6 +145,13 @@ class ClassifierContext:
             self._contact_evidence = contact_evidence(self.object_mask, self.renders[best], found.similarity)
         return self._contact_evidence
 
+    def underside_evidence(self) -> UndersideEvidence:
+        """The dark band along the outline's bottom between the wheels, in the best-agreeing template's frame."""
+        if self._underside_evidence is None:
+            best, found = self._best_agreement()
+            self._underside_evidence = underside_evidence(self.image, self.object_mask, self.renders[best], found.similarity)
+        return self._underside_evidence
+
     def _best_agreement(self) -> tuple[str, Agreement]:
         """The subtype whose placed template overlaps the outline most, and its agreement."""
         return max(self.agreement().items(), key=lambda item: item[1].iou)
@@ -179,7 +188,7 @@ def silhouette_agreement(object_mask: np.ndarray, renders: dict[str, TemplateRen
 class FrontalGate:
     """Rejects views too far from the family's canonical view (the paper allows about ±10°).
 
-    Four silhouette tests and one image test, all training-free:
+    Five silhouette tests and two image tests, all training-free:
 
     - score = best over subtypes of IoU x :func:`foreshortening` must reach the family's
       ``frontal_threshold``: IoU alone barely drops when a car turns (a front view of a
@@ -211,6 +220,10 @@ class FrontalGate:
       than ``contact_pair_margin`` of its length (see :mod:`frontal3d.stages.ground_contacts`).
       This catches a car turned about image-up, whose far wheels come out beside the near
       ones; off (1.0) unless the family sets it, skipped when the outline is partly hidden.
+    - the outline's bottom between the wheels may not show a dark band taller than
+      ``underside_margin`` of its length (see :mod:`frontal3d.stages.underside`). This catches
+      a car rolled about its length axis, bottom towards the camera, whose floor comes into
+      view; off (1.0) unless the family sets it, skipped when the outline is partly hidden.
 
     ``frontal_threshold`` 0 switches the gate off (evaluation runs on known-frontal data).
     """
@@ -291,6 +304,15 @@ def _far_wheels_show(context: ClassifierContext, margin: float) -> str | None:
             f"({contacts.split:.0%} of its length apart; a {context.family.canonical_view} view shows one per axle)")
 
 
+def _floor_shows(context: ClassifierContext, margin: float) -> str | None:
+    """The floor shows below the sill (:mod:`frontal3d.stages.underside`)."""
+    underside = context.underside_evidence()
+    if underside.band <= margin:
+        return None
+    return (f" about its length axis: its floor shows below the sill as a dark band {underside.band:.0%} of its length "
+            f"tall (at most {margin:.0%} in a {context.family.canonical_view} view)")
+
+
 #: The frontal gate's tests after the agreement threshold, in order: (setting holding the margin,
 #: judge returning what gives the turn away or None, skipped when the outline is partly hidden).
 #: An arm across the object, or a person beside it whose pixels may be the object's, makes an
@@ -302,6 +324,7 @@ TURN_TESTS: tuple[tuple[str, Callable[[ClassifierContext, float], str | None], b
     ("parallax_margin", _neck_beside_midline, True),
     ("rim_margin", _side_wall_shows, True),
     ("contact_pair_margin", _far_wheels_show, True),
+    ("underside_margin", _floor_shows, True),
 )
 
 
