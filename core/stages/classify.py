@@ -102,6 +102,10 @@ class ClassifierContext:
         """The agreement the frontal gate judges the view by (the same unless a context hides more from it)."""
         return self.agreement()
 
+    def subtype_agreement(self) -> dict[str, Agreement]:
+        """The agreement the subtype classifier judges by (the same unless a context tries more placements)."""
+        return self.agreement()
+
     def outline_partly_hidden(self) -> bool:
         """Whether some of the outline may be hidden (by occluders or people beside the object)."""
         return False
@@ -341,7 +345,7 @@ class SubtypeClassifier:
     order = 20
 
     def classify(self, context: ClassifierContext) -> Decision:
-        agreement = context.agreement()
+        agreement = context.subtype_agreement()
         names = list(agreement)
         scores = np.array([agreement[n].iou + HOLE_WEIGHT * _hole_evidence(context, n) for n in names])
         weights = np.exp((scores - scores.max()) / SUBTYPE_TEMPERATURE)
@@ -364,7 +368,7 @@ def _hole_evidence(context: ClassifierContext, subtype: str) -> float:
     if HOLE_REGION not in render.region_names:
         return 0.0
     hole_label = render.region_names.index(HOLE_REGION)
-    regions = warp_labels(render.front_regions, context.agreement()[subtype].similarity, context.object_mask.shape)
+    regions = warp_labels(render.front_regions, context.subtype_agreement()[subtype].similarity, context.object_mask.shape)
     hole = (regions == hole_label) & context.object_mask
     if hole.sum() < 12:
         return 0.0

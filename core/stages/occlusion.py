@@ -127,11 +127,18 @@ class VisibleAgreementContext(ClassifierContext):
     pixels may be in front of it or behind it. Whether the outline there is the object's
     is unknown, which is no evidence against a front view; the subtype still sees them, as a
     guitarist's body behind a small electric body must not let a large classical body fit.
+
+    For the subtype each template is also placed with ``view_hidden`` left out of the
+    placement (not of the score), and the placement whose seen IoU is higher stands: a
+    person's edge next to the outline can trap one subtype's search (an astronaut beside a
+    classical body pulled its template off the lower bout, and the electric one won). Both
+    subtypes get the same two tries; the gate and the alignment keep the first placement.
     """
 
     hidden: np.ndarray | None = None
     view_hidden: np.ndarray | None = None
     _view_agreement: dict[str, Agreement] | None = field(default=None, repr=False)
+    _subtype_agreement: dict[str, Agreement] | None = field(default=None, repr=False)
 
     def agreement(self) -> dict[str, Agreement]:
         if self._agreement is None:
@@ -145,6 +152,15 @@ class VisibleAgreementContext(ClassifierContext):
         if self._view_agreement is None:
             self._view_agreement = self._seen(self.agreement(), self.view_hidden_pixels())
         return self._view_agreement
+
+    def subtype_agreement(self) -> dict[str, Agreement]:
+        if self._subtype_agreement is None:
+            placed, freed = self.agreement(), self.view_hidden_pixels()
+            if self.view_hidden is not None and (self.hidden is None or (freed & ~self.hidden).any()):
+                free = self._seen(silhouette_agreement(self.object_mask, self.renders, self.max_angle(), hidden=freed), self.hidden)
+                placed = {subtype: max(found, free[subtype], key=lambda agreement: agreement.iou) for subtype, found in placed.items()}
+            self._subtype_agreement = placed
+        return self._subtype_agreement
 
     def view_hidden_pixels(self) -> np.ndarray | None:
         if self.view_hidden is None or self.hidden is None:
