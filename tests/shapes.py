@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import trimesh
 
@@ -27,6 +29,15 @@ def box_car() -> trimesh.Trimesh:
             wheel.apply_translation([x, 0.35, z])
             parts.append(wheel)
     return trimesh.util.concatenate(parts)
+
+
+def box_car_meshes(folder: Path) -> Path:
+    """``folder`` holding the box car, scaled to unit length, as the only mesh (evaluate-gate input)."""
+    folder.mkdir()
+    car = box_car()
+    car.apply_scale(1.0 / max(car.extents))
+    car.export(folder / "boxcar.glb")
+    return folder
 
 
 def slab_guitar() -> tuple[trimesh.Trimesh, np.ndarray]:

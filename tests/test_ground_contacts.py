@@ -9,7 +9,7 @@ import pytest
 from frontal3d.eval_gate import evaluate_gate
 from frontal3d.plugins import Plugins
 from frontal3d.stages.ground_contacts import contact_split
-from shapes import box_car
+from shapes import box_car_meshes
 
 
 def _outline(wheel_centres: list[float], length: int = 300) -> np.ndarray:
@@ -53,11 +53,7 @@ def test_gate_turns_down_a_car_turned_30_degrees_sideways_by_its_contacts(tmp_pa
     """The box car turned 30° about image-up shows all four wheels: the contact test rejects it, and
     nothing else does (with the test off the same views pass); its side and 10° views stay accepted.
     The turned-template test is off: on this boxy car it already rejects 10° views."""
-    folder = tmp_path / "meshes"
-    folder.mkdir()
-    car = box_car()
-    car.apply_scale(1.0 / max(car.extents))
-    car.export(folder / "boxcar.glb")
+    folder = box_car_meshes(tmp_path / "meshes")
     rows, _ = evaluate_gate(Plugins(), "car", folder, angles=(0, 10, 30), resolution=200, subtype="sedan",
                             settings={"turned_margin": 1.0})
     by_view = {(r["axis"], r["degrees"]): r for r in rows}

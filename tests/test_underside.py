@@ -8,7 +8,7 @@ import pytest
 from frontal3d.eval_gate import evaluate_gate
 from frontal3d.plugins import Plugins
 from frontal3d.stages.underside import floor_band
-from shapes import box_car
+from shapes import box_car_meshes
 
 LENGTH = 300
 #: Rows of the side outline: its top (roof) and bottom (sill) in a 200 x 340 frame.
@@ -70,11 +70,7 @@ def test_gate_turns_down_a_car_rolled_30_degrees_by_its_floor(tmp_path):
     rolled the other way (roof towards the camera) it shows no floor. The other tests are kept out of the
     way: the turned-template test already rejects this boxy car's 10° views, and its 30° rolls fall just
     under the silhouette threshold (0.44 < 0.45), which is lowered to 0.3 here."""
-    folder = tmp_path / "meshes"
-    folder.mkdir()
-    car = box_car()
-    car.apply_scale(1.0 / max(car.extents))
-    car.export(folder / "boxcar.glb")
+    folder = box_car_meshes(tmp_path / "meshes")
     rows, _ = evaluate_gate(Plugins(), "car", folder, angles=(0, 10, 30), resolution=200, subtype="sedan",
                             settings=ISOLATED)
     by_view = {(r["axis"], r["degrees"]): r for r in rows}
