@@ -82,11 +82,8 @@ class ClassifierContext:
     settings: dict[str, Any]
     _agreement: dict[str, Agreement] | None = field(default=None, repr=False)
     _turn_evidence: TurnEvidence | None = field(default=None, repr=False)
-    _mirror_evidence: MirrorEvidence | None = field(default=None, repr=False)
-    _parallax_evidence: ParallaxEvidence | None = field(default=None, repr=False)
-    _rim_evidence: RimEvidence | None = field(default=None, repr=False)
-    _contact_evidence: ContactEvidence | None = field(default=None, repr=False)
-    _underside_evidence: UndersideEvidence | None = field(default=None, repr=False)
+    #: Evidence measured on the best-agreeing template's placement, by kind (see :meth:`_on_best_template`).
+    _placed_evidence: dict[str, Any] = field(default_factory=dict, repr=False)
 
     def agreement(self) -> dict[str, Agreement]:
         """Per subtype: IoU with the aligned template and the template -> image similarity."""
@@ -123,38 +120,30 @@ class ClassifierContext:
 
     def mirror_evidence(self) -> MirrorEvidence:
         """Mirror symmetry of the outline vs the best-agreeing template's, about that template's axis."""
-        if self._mirror_evidence is None:
-            best, found = self._best_agreement()
-            self._mirror_evidence = mirror_evidence(self.object_mask, self.renders[best], found.similarity)
-        return self._mirror_evidence
+        return self._on_best_template("mirror", lambda render, similarity: mirror_evidence(self.object_mask, render, similarity))
 
     def parallax_evidence(self) -> ParallaxEvidence:
         """How far the neck sits off the body's midline, in the best-agreeing template's frame."""
-        if self._parallax_evidence is None:
-            best, found = self._best_agreement()
-            self._parallax_evidence = parallax_evidence(self.object_mask, self.renders[best], found.similarity)
-        return self._parallax_evidence
+        return self._on_best_template("parallax", lambda render, similarity: parallax_evidence(self.object_mask, render, similarity))
 
     def rim_evidence(self) -> RimEvidence:
         """Side-wall band widths along the body's outline, by direction, in the best-agreeing template's frame."""
-        if self._rim_evidence is None:
-            best, found = self._best_agreement()
-            self._rim_evidence = rim_evidence(self.image, self.object_mask, self.renders[best], found.similarity)
-        return self._rim_evidence
+        return self._on_best_template("rim", lambda render, similarity: rim_evidence(self.image, self.object_mask, render, similarity))
 
     def contact_evidence(self) -> ContactEvidence:
         """How the outline's ground contacts split into pairs, in the best-agreeing template's frame."""
-        if self._contact_evidence is None:
-            best, found = self._best_agreement()
-            self._contact_evidence = contact_evidence(self.object_mask, self.renders[best], found.similarity)
-        return self._contact_evidence
+        return self._on_best_template("contact", lambda render, similarity: contact_evidence(self.object_mask, render, similarity))
 
     def underside_evidence(self) -> UndersideEvidence:
         """The dark band along the outline's bottom between the wheels, in the best-agreeing template's frame."""
-        if self._underside_evidence is None:
+        return self._on_best_template("underside", lambda render, similarity: underside_evidence(self.image, self.object_mask, render, similarity))
+
+    def _on_best_template(self, kind: str, measure: Callable[[TemplateRenders, Similarity], Any]) -> Any:
+        """``measure`` on the best-agreeing template's renders and placement, once per context and kind."""
+        if kind not in self._placed_evidence:
             best, found = self._best_agreement()
-            self._underside_evidence = underside_evidence(self.image, self.object_mask, self.renders[best], found.similarity)
-        return self._underside_evidence
+            self._placed_evidence[kind] = measure(self.renders[best], found.similarity)
+        return self._placed_evidence[kind]
 
     def _best_agreement(self) -> tuple[str, Agreement]:
         """The subtype whose placed template overlaps the outline most, and its agreement."""

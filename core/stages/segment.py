@@ -290,10 +290,10 @@ def _cut_foreign_growth(labels: np.ndarray, probability: np.ndarray, colours: np
     reach in colours not its object's (a blob's far side, once a seed near the object taught the
     foreground model its colour): they become sure background and GrabCut cuts again, up to
     :data:`FOREIGN_ROUNDS` times while it grows such pieces anew."""
-    far_off = ~_near_learned_object(probability)
+    far_off, learned_object = ~_near_learned_object(probability), probability > 0.5
     for _ in range(FOREIGN_ROUNDS):
         found = _foreground(labels)
-        foreign = _foreign_pieces(found & far_off, found & (probability > 0.5), colours, FOREIGN_GROWTH_COLOUR)
+        foreign = _foreign_pieces(found & far_off, found & learned_object, colours, FOREIGN_GROWTH_COLOUR)
         if not foreign.any():
             return
         labels[foreign] = cv2.GC_BGD
