@@ -21,7 +21,7 @@ from __future__ import annotations
 import csv
 import time
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -43,6 +43,8 @@ DEFAULT_ANGLES = (0.0, 10.0, 30.0, 45.0, 60.0, 90.0)
 #: Side of the rendered square views (the classifiers compare masks at 128 px).
 DEFAULT_RESOLUTION = 256
 CSV_FIELDS = ("id", "axis", "degrees", "accepted", "label", "confidence", "subtype", "true_subtype", "seconds", "reason")
+#: How the summary names the turns about each axis.
+AXIS_NAMES = {"yaw": "about image-up (yaw)", "pitch": "about image-right (pitch)"}
 #: Synthetic samples add their label (1 = frontal) and judge turns by the larger of yaw and pitch.
 SYNTH_CSV_FIELDS = CSV_FIELDS + ("frontal",)
 
@@ -55,6 +57,8 @@ class GateSummary:
     count: dict[float, int]
     balanced_0: float  # 0° (accept) vs >= 30° (reject)
     balanced_10: float  # 0° and ±10° vs >= 30°
+    #: 0° vs >= 30° turns about one axis only ("yaw": image-up, the issue's target; "pitch": image-right).
+    balanced_by_axis: dict[str, float] = field(default_factory=dict)
     renders_accepted: tuple[int, int] | None = None  # (accepted, scored) of the given frontal renders
     subtype_right: tuple[int, int] | None = None  # (right, scored) over accepted, labelled frontal views
 
@@ -67,6 +71,8 @@ class GateSummary:
         out.append(f"balanced accuracy 0° vs >= {TURNED_FROM_DEG:.0f}°: {self.balanced_0:.3f}")
         if not np.isnan(self.balanced_10):
             out.append(f"balanced accuracy 0-{FRONTAL_LIMIT_DEG:.0f}° vs >= {TURNED_FROM_DEG:.0f}°: {self.balanced_10:.3f}")
+        for axis, value in self.balanced_by_axis.items():
+            out.append(f"balanced accuracy 0° vs >= {TURNED_FROM_DEG:.0f}° {AXIS_NAMES[axis]} only: {value:.3f}")
         out.extend(_subtype_lines(self.subtype_right))
         return out
 
@@ -210,14 +216,18 @@ def summarize(rows: list[dict]) -> GateSummary:
     frontal_0 = by_turn.get(0.0, [])
     frontal_10 = [v for d, values in by_turn.items() if d <= FRONTAL_LIMIT_DEG for v in values]
 
-    def balanced(frontal: list[int]) -> float:
-        if not frontal or not turned_rows:
+    def balanced(frontal: list[int], turned: list[int]) -> float:
+        if not frontal or not turned:
             return float("nan")
-        return 0.5 * (float(np.mean(frontal)) + 1.0 - float(np.mean(turned_rows)))
+        return 0.5 * (float(np.mean(frontal)) + 1.0 - float(np.mean(turned)))
 
+    turned_by_axis = {axis: [int(row["accepted"]) for row in rows
+                             if row.get("axis") == axis and abs(float(row["degrees"])) >= TURNED_FROM_DEG] for axis in AXIS_NAMES}
     has_10 = any(0 < d <= FRONTAL_LIMIT_DEG for d in by_turn)
     return GateSummary(accept_rate=rate, count={d: len(v) for d, v in by_turn.items()},
-                       balanced_0=balanced(frontal_0), balanced_10=balanced(frontal_10) if has_10 else float("nan"),
+                       balanced_0=balanced(frontal_0, turned_rows),
+                       balanced_10=balanced(frontal_10, turned_rows) if has_10 else float("nan"),
+                       balanced_by_axis={axis: balanced(frontal_0, turned) for axis, turned in turned_by_axis.items() if turned},
                        renders_accepted=(sum(given), len(given)) if given else None, subtype_right=subtype_right)
 
 

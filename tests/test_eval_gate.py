@@ -82,13 +82,16 @@ def test_subtype_labels_file_keeps_its_family_and_refuses_unknown_subtypes(tmp_p
 
 
 def test_summary_balances_frontal_acceptance_against_turned_rejection():
-    rows = [{"degrees": 0.0, "accepted": 1}, {"degrees": 10.0, "accepted": 0},
-            {"degrees": 30.0, "accepted": 1}, {"degrees": -45.0, "accepted": 0},
-            {"degrees": 45.0, "accepted": 0}, {"degrees": 20.0, "accepted": 1}]
+    rows = [{"axis": "yaw", "degrees": 0.0, "accepted": 1}, {"axis": "yaw", "degrees": 10.0, "accepted": 0},
+            {"axis": "pitch", "degrees": 30.0, "accepted": 1}, {"axis": "yaw", "degrees": -45.0, "accepted": 0},
+            {"axis": "yaw", "degrees": 45.0, "accepted": 0}, {"axis": "pitch", "degrees": 20.0, "accepted": 1}]
     summary = summarize(rows)
     assert summary.accept_rate[45.0] == 0.0 and summary.count[45.0] == 2
     assert summary.balanced_0 == pytest.approx(0.5 * (1.0 + 2 / 3))
     assert summary.balanced_10 == pytest.approx(0.5 * (0.5 + 2 / 3))
+    # The target judges turns about image-up: here both yaw turns are rejected, the pitched one is not.
+    assert summary.balanced_by_axis == {"yaw": 1.0, "pitch": pytest.approx(0.5)}
+    assert any("about image-up (yaw) only: 1.000" in line for line in summary.lines())
 
 
 def test_cli_rejects_bad_angles(meshes, capsys):

@@ -33,6 +33,18 @@ def test_far_wheels_beside_the_near_ones_split_both_axles_by_their_offset():
     assert evidence.split == pytest.approx(0.18, abs=0.01)
 
 
+def test_far_wheels_come_out_further_than_half_the_wheelbase_past_40_degrees():
+    # At 45° a near and a far wheel stand further apart than the two axles do: each end's two runs are its pair.
+    assert contact_split(_outline([0.08, 0.33, 0.5, 0.75])).split == pytest.approx(0.25, abs=0.015)
+
+
+def test_near_60_degrees_three_evenly_spaced_contacts_are_two_pairs_sharing_the_middle():
+    # One axle's far wheel stands where the other's near wheel does: three contacts, evenly spaced.
+    evidence = contact_split(_outline([0.1, 0.5, 0.9]))
+    assert evidence.runs == 3
+    assert evidence.split == pytest.approx(0.4, abs=0.01)
+
+
 def test_a_tilted_photo_still_stands_on_its_ground_line():
     # Two degrees of tilt lift one end by about 10 px, three times the contact depth: the ground is the hull's line.
     mask = _outline([0.15, 0.33, 0.67, 0.85]).astype(np.uint8)

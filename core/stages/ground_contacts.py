@@ -10,11 +10,17 @@ fool it.
 
 Measured in the aligned template's frame (the alignment's similarity undoes scale and
 in-plane tilt, so "down" is the template's ground): the outline's bottom row per column,
-the columns within :data:`CONTACT_DEPTH` of the lowest one, and their runs. The biggest gap
-between runs splits them into a front and a rear group; each group's spread (first to last
-run centre) over the outline's length is the split. The evidence is the smaller of the two
-splits: both axles must show a pair, since one odd run (a skirt, a tow hook, a spoiler
-dipping low) is not a turn. Families switch the test on with ``contact_pair_margin``.
+the columns within :data:`CONTACT_DEPTH` of the lowest one, and their runs. The two runs at
+each end of the outline are that end's pair, and each pair's spread (run centre to run centre)
+over the outline's length is its split. Not the biggest gap between runs: past about 40° the
+far wheels come out further than half the (foreshortened) wheelbase, so the gap between a near
+and a far wheel outgrows the gap between the axles (at 45°, about 0.25 against 0.17 of the
+length). The evidence is the smaller of the two splits: both ends must show a pair, since one
+odd run (a skirt, a tow hook, a spoiler dipping low) is not a turn. Near 60° one axle's far
+wheel stands where the other's near wheel does and the two merge: three runs, evenly spaced
+(gaps within :data:`EVEN_GAPS` of each other), share their middle one between the two pairs;
+three runs with a pair at one end only (a tow hook, a twin axle) are no turn. Families switch
+the test on with ``contact_pair_margin``.
 """
 
 from __future__ import annotations
@@ -31,6 +37,8 @@ from frontal3d.stages.align import Similarity, warp_mask
 CONTACT_DEPTH = 0.03
 #: Runs of contact columns closer than this (share of the outline's length) are one patch.
 MERGE_GAP = 0.01
+#: Three runs count as two pairs sharing the middle run when the smaller gap is at least this share of the larger.
+EVEN_GAPS = 0.5
 
 
 @dataclass(frozen=True)
@@ -47,7 +55,8 @@ def contact_evidence(object_mask: np.ndarray, render: TemplateRenders, similarit
 
 
 def contact_split(mask: np.ndarray) -> ContactEvidence:
-    """Ground contacts of an upright outline (image-down = ground); no split with fewer than four runs."""
+    """Ground contacts of an upright outline (image-down = ground); no split with fewer than three runs,
+    nor with three unevenly spaced ones."""
     columns = np.flatnonzero(mask.any(axis=0))
     rows = np.flatnonzero(mask.any(axis=1))
     if columns.size < 2 or rows.size < 2:
@@ -59,11 +68,10 @@ def contact_split(mask: np.ndarray) -> ContactEvidence:
     touching = columns[above_ground <= max(1.0, CONTACT_DEPTH * height)]
     breaks = np.flatnonzero(np.diff(touching) > max(2.0, MERGE_GAP * length))
     centres = np.array([run.mean() for run in np.split(touching, breaks + 1)])
-    if centres.size < 4:
+    gaps = np.diff(centres)
+    if centres.size < 3 or (centres.size == 3 and gaps.min() < EVEN_GAPS * gaps.max()):
         return ContactEvidence(int(centres.size), 0.0)
-    axle_gap = int(np.argmax(np.diff(centres)))
-    front, rear = centres[: axle_gap + 1], centres[axle_gap + 1 :]
-    split = min(np.ptp(front), np.ptp(rear)) / length
+    split = min(centres[1] - centres[0], centres[-1] - centres[-2]) / length
     return ContactEvidence(int(centres.size), float(split))
 
 
