@@ -56,6 +56,11 @@ HAND_MARGIN = 0.15
 #: only count where the placed template says they hide the object (occlusion.in_front).
 OFF_OBJECT_REACH = 0.05
 OFF_OBJECT_SHARE = 0.1
+#: ... or, less sure, when its person pixels (p > 0.5) that far off the object add up to at
+#: least OFF_OBJECT_BODY_SHARE of the object's area: a whole body beside or behind it in dark
+#: clothes (the cameraman behind a guitar, p 0.5-0.9 over his coat). No soft blob on the
+#: procedural backgrounds reaches half the object's area at p > 0.5 without being sure of it.
+OFF_OBJECT_BODY_SHARE = 0.75
 
 #: How far (fraction of the image's long side) from a found arm or hand the person's own
 #: pixels off the object are added to it.
@@ -150,7 +155,8 @@ def _face_off_object(models: _Models, small: np.ndarray, person: np.ndarray, obj
 
 
 def _sure_person_off_object(probability: np.ndarray, object_mask: np.ndarray | None) -> bool:
-    """Whether the segmenter is sure of enough person pixels well away from the object (OFF_OBJECT_SHARE)."""
+    """Whether the segmenter is sure of enough person pixels well away from the object
+    (OFF_OBJECT_SHARE), or sees a whole body there (OFF_OBJECT_BODY_SHARE)."""
     if object_mask is None:
         return False
     height, width = probability.shape
@@ -160,7 +166,8 @@ def _sure_person_off_object(probability: np.ndarray, object_mask: np.ndarray | N
         return False
     reach = max(1, round(OFF_OBJECT_REACH * (max(np.ptp(rows), np.ptp(cols)) + 1)))
     near = cv2.dilate(on_object.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1,) * 2)) > 0
-    return np.count_nonzero((probability > CONFIDENT_PERSON_PROBABILITY) & ~near) >= OFF_OBJECT_SHARE * len(rows)
+    return (np.count_nonzero((probability > CONFIDENT_PERSON_PROBABILITY) & ~near) >= OFF_OBJECT_SHARE * len(rows)
+            or np.count_nonzero((probability > PERSON_PROBABILITY) & ~near) >= OFF_OBJECT_BODY_SHARE * len(rows))
 
 
 def _detection_image(image: np.ndarray) -> tuple[np.ndarray, tuple[int, int]]:

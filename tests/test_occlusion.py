@@ -434,18 +434,22 @@ def test_a_face_off_the_object_vouches_for_a_person_the_pose_model_misses(monkey
     monkeypatch.setattr(occluders, "_load_models", lambda: models((20, 15, 25, 25)))  # on the person's head
     found, evidence = detect_people_with_evidence(image, guitar)
     assert found is not None and found[person].all() and evidence == "face"
-    # On the guitar's body, with the segmenter unsure of the person (sure of them, it alone would vouch).
-    monkeypatch.setattr(occluders, "_load_models", lambda: models((72, 55, 25, 25), person_probability=0.7))
+    # On the guitar's body, with the segmenter unsure of the person (sure of them, or seeing this
+    # body larger than the guitar at p > 0.5, it alone would vouch).
+    monkeypatch.setattr(occluders, "_load_models", lambda: models((72, 55, 25, 25), person_probability=0.4))
     assert detect_people(image, guitar) is None
 
 
 def test_a_person_the_segmenter_is_sure_of_well_off_the_object_needs_no_pose_or_face(monkeypatch):
     """The cameraman in profile beside a guitar: no pose, no face, but a torso the segmenter is
-    sure of off the object. The segmenter firing on the guitar alone (spilling past its edge),
-    or only unsure of the torso, finds nobody."""
+    sure of off the object, or a whole body larger than the object it is unsure of (a dark
+    coat). The segmenter firing on the guitar alone (spilling past its edge), or only unsure
+    of a patch half the object's size (a soft blob), finds nobody."""
     guitar = _ellipse((240, 240), (170, 140), (40, 80))
     torso = np.zeros((240, 240), bool)
     torso[60:240, 30:110] = True
+    patch = np.zeros((240, 240), bool)
+    patch[140:240, 30:80] = True
     spill = cv2.dilate(guitar.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
 
     def models(probability):
@@ -456,8 +460,12 @@ def test_a_person_the_segmenter_is_sure_of_well_off_the_object_needs_no_pose_or_
     monkeypatch.setattr(occluders, "_load_models", lambda: models(np.where(torso | guitar, 0.95, 0.0)))
     found, evidence = detect_people_with_evidence(image, guitar)
     assert found is not None and found[torso].all() and evidence == "segmenter"
-    for n, probability in enumerate((np.where(spill, 0.95, 0.0), np.where(guitar, 0.95, np.where(torso, 0.7, 0.0)))):
-        image[0, 0] = 41 + n  # a new image each time: the last segmentation is not reused
+    image[0, 0] = 41  # a new image: the last segmentation is not reused
+    monkeypatch.setattr(occluders, "_load_models", lambda: models(np.where(guitar, 0.95, np.where(torso, 0.7, 0.0))))
+    found, evidence = detect_people_with_evidence(image, guitar)
+    assert found is not None and found[torso].all() and evidence == "segmenter"
+    for n, probability in enumerate((np.where(spill, 0.95, 0.0), np.where(guitar, 0.95, np.where(patch, 0.7, 0.0)))):
+        image[0, 0] = 42 + n
         monkeypatch.setattr(occluders, "_load_models", lambda: models(probability))
         assert detect_people(image, guitar) is None
     assert detect_people(image) is None  # without the object's mask nothing tells a plain object from a person
