@@ -79,6 +79,9 @@ FOREIGN_ITERATIONS = 2
 #: At most this many such cuts: a cut can grow the foreground further into the same blob
 #: (its colour model changed), and the next cut takes that back.
 FOREIGN_ROUNDS = 3
+#: At most this many times the sure background beyond the seeds' reach moves out to the
+#: reach of GrabCut's foreground where that foreground runs up against it.
+REACH_ROUNDS = 3
 
 
 def mask_from_alpha(image: np.ndarray) -> np.ndarray | None:
@@ -140,11 +143,13 @@ def _segment_unframed(rgb: np.ndarray, iterations: int, probability: np.ndarray 
     background = _smooth_background(lab, border)
     flattened = np.clip(lab - background + background[border].mean(axis=0), 0, 255).astype(np.uint8)
     small_probability = None if probability is None else cv2.resize(probability, small_size, interpolation=cv2.INTER_LINEAR)
-    init = _initial_labels(lab, background, border, small_probability)
-    if init is None:
+    labels = _initial_labels(lab, background, border, small_probability)
+    if labels is None:
         return None
+    init, beyond_reach = labels
     _grabcut(flattened, init, iterations)
     if small_probability is not None:
+        _widen_reach(init, beyond_reach, flattened)
         _cut_foreign_growth(init, small_probability, cv2.GaussianBlur(lab, (0, 0), 1.5), flattened)
     found = _clean(_foreground(init))
     if found.mean() < MIN_FOREGROUND or _touches_all_borders(found):
@@ -208,14 +213,18 @@ def _smooth_background(lab: np.ndarray, border: np.ndarray) -> np.ndarray:
     return (basis @ coefficients.astype(np.float32)).reshape(lab.shape)
 
 
-def _initial_labels(lab: np.ndarray, background: np.ndarray, border_mask: np.ndarray, probability: np.ndarray | None = None) -> np.ndarray | None:
-    """GrabCut's initial label map; None when no pixel differs from the background.
+def _initial_labels(lab: np.ndarray, background: np.ndarray, border_mask: np.ndarray,
+                    probability: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray] | None:
+    """GrabCut's initial label map and its sure background that only distance put there (beyond
+    the seeds' reach); None when no pixel differs from the background.
 
     Probable foreground: what the background model cannot explain (weak differences
     too, where they are solid areas touching strong ones: a wing barely lighter than
     the sky), smooth surfaces on a textured background, and regions closed off by
     strong edges (an object of the background's own colour still has an outline).
-    Definite background: the border and whatever lies far from all of these.
+    Definite background: the border and whatever lies far from all of these. With a learned
+    p(object), the network's whole object (p >= :data:`LEARNED_UNLIKELY`) counts as seeded
+    for that distance: its surest part alone may be a guitar's neck without the body.
     """
     residual = lab - background
     # Distance to the nearest border colour after flattening: one colour for a plain or
@@ -249,14 +258,40 @@ def _initial_labels(lab: np.ndarray, background: np.ndarray, border_mask: np.nda
     if probability is not None:
         salient, sure_background = _learned_seeds(salient, probability, cv2.GaussianBlur(lab, (0, 0), 1.5))
     init = np.full(lab.shape[:2], cv2.GC_PR_BGD, np.uint8)
-    reach = max(3, round(SEED_REACH * max(lab.shape[:2])))
-    near = cv2.dilate(salient.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1,) * 2)) > 0
+    seeded = salient if probability is None else salient | (probability >= LEARNED_UNLIKELY)
+    near = _dilated(seeded, _seed_reach(lab.shape[:2]))
     init[~near | sure_background] = cv2.GC_BGD
     init[salient] = cv2.GC_PR_FGD
     init[border_mask] = cv2.GC_BGD
     if (init == cv2.GC_PR_FGD).mean() < MIN_FOREGROUND / 2:
         return None
-    return init
+    return init, ~near & ~sure_background & ~border_mask
+
+
+def _seed_reach(shape: tuple[int, ...]) -> int:
+    """:data:`SEED_REACH` in pixels of an image of ``shape``."""
+    return max(3, round(SEED_REACH * max(shape)))
+
+
+def _widen_reach(labels: np.ndarray, beyond_reach: np.ndarray, flattened: np.ndarray) -> None:
+    """Where GrabCut's foreground (``labels``, in place) runs up against the sure background that
+    only the seeds' reach put there (``beyond_reach``), that background moves out to the reach of
+    the foreground and GrabCut cuts again, up to :data:`REACH_ROUNDS` times.
+
+    Seeded by the network, the seeds can be its blurred object alone (a white plane's fuselage
+    without the wing tips, over colours the border also shows), and the reach drawn around them
+    cut the object off along an arc; the colour model GrabCut learned decides instead.
+    """
+    reach = _seed_reach(labels.shape)
+    beyond_reach = beyond_reach.copy()
+    for _ in range(REACH_ROUNDS):
+        found = _foreground(labels)
+        if np.count_nonzero(found & _dilated(beyond_reach, 1)) < MIN_OBJECT_PIXELS:
+            return
+        released = beyond_reach & _dilated(found, reach)
+        labels[released] = cv2.GC_PR_BGD
+        beyond_reach &= ~released
+        _grabcut(flattened, labels, FOREIGN_ITERATIONS)
 
 
 def _learned_seeds(salient: np.ndarray, probability: np.ndarray, colours: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
