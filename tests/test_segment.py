@@ -334,6 +334,17 @@ def test_a_learned_probability_cuts_off_a_blob_touching_the_object():
     assert _iou(seeded, truth) > 0.97
 
 
+def test_a_learned_probability_cuts_off_a_blob_of_another_hue_within_its_reach():
+    # The blob sits on the roof and reaches only ~30 px beyond it: within the network's reach,
+    # so no piece of it is "far", and a coarse network (48 px) blurs p > 0.5 onto its near side.
+    # Most of the blob's colour still has low p, unlike the car's: that colour is cut.
+    image, truth, blob = _car_before_a_blue_blob(13, (300, 190), (60, 30))
+    beyond = (blob[..., 0] > 0.5) & ~truth
+    found = grabcut_segment(image, object_probability=_network_like_probability(truth, 48))
+    assert found is not None and (found & beyond).sum() < 0.02 * beyond.sum()  # 3206 of its 3814 px before
+    assert _iou(found, truth) > 0.97
+
+
 def test_a_learned_probability_keeps_a_part_of_the_object_s_colour_it_missed():
     # A long boom of the car's colour reaches far beyond what the network saw: it stays,
     # though the background darkens under it (its colour is judged as seen, not flattened).

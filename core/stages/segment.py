@@ -82,6 +82,15 @@ FOREIGN_ROUNDS = 3
 #: At most this many times the sure background beyond the seeds' reach moves out to the
 #: reach of GrabCut's foreground where that foreground runs up against it.
 REACH_ROUNDS = 3
+#: Doubted colours (:func:`_cut_doubted_colours`): GrabCut's foreground is split into this many
+#: colours (k-means, Lab); a colour the network believes has mean p(object) >= 0.5 over its pixels,
+#: one it doubts has a mean below :data:`DOUBTED_COLOUR_P` and a hue (a, b) more than
+#: :data:`DOUBTED_CHROMA` from every believed one. Its pixels at p < :data:`DOUBTED_PIXEL_P`
+#: (opened 7 px, so no edge blend) become sure background. Chosen on the odd-indexed renders.
+FOREGROUND_COLOURS = 8
+DOUBTED_COLOUR_P = 0.45
+DOUBTED_PIXEL_P = 0.25
+DOUBTED_CHROMA = 20.0
 
 
 def mask_from_alpha(image: np.ndarray) -> np.ndarray | None:
@@ -150,7 +159,9 @@ def _segment_unframed(rgb: np.ndarray, iterations: int, probability: np.ndarray 
     _grabcut(flattened, init, iterations)
     if small_probability is not None:
         _widen_reach(init, beyond_reach, flattened)
-        _cut_foreign_growth(init, small_probability, cv2.GaussianBlur(lab, (0, 0), 1.5), flattened)
+        seen = cv2.GaussianBlur(lab, (0, 0), 1.5)
+        _cut_foreign_growth(init, small_probability, seen, flattened)
+        _cut_doubted_colours(init, small_probability, seen, flattened)
     found = _clean(_foreground(init))
     if found.mean() < MIN_FOREGROUND or _touches_all_borders(found):
         return None
@@ -333,6 +344,41 @@ def _cut_foreign_growth(labels: np.ndarray, probability: np.ndarray, colours: np
             return
         labels[foreign] = cv2.GC_BGD
         _grabcut(flattened, labels, FOREIGN_ITERATIONS)
+
+
+def _cut_doubted_colours(labels: np.ndarray, probability: np.ndarray, colours: np.ndarray, flattened: np.ndarray) -> None:
+    """GrabCut's foreground (``labels``, in place) without its colours the network doubts (see
+    :data:`FOREGROUND_COLOURS`), then GrabCut cuts again.
+
+    A blob touching the object lies within the network's reach, so :func:`_cut_foreign_growth`
+    never tests it, and the network's blurred edge lends it p > 0.5 near the object: judged per
+    pixel, its colour looks like the object's. Judged per colour of the whole foreground, most of
+    its pixels have low p, while the object's colours are believed on most of theirs.
+    """
+    found = _foreground(labels)
+    samples = np.ascontiguousarray(colours[found], dtype=np.float32)
+    if len(samples) < FOREGROUND_COLOURS * MIN_OBJECT_PIXELS:
+        return
+    criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 20, 1.0)
+    cv2.setRNGSeed(0)
+    step = max(1, len(samples) // MAX_CLUSTER_SAMPLES)
+    _, _, centres = cv2.kmeans(samples[::step], FOREGROUND_COLOURS, None, criteria, 2, cv2.KMEANS_PP_CENTERS)
+    nearest = np.argmin(((samples[:, None] - centres[None]) ** 2).sum(axis=2), axis=1)
+    counts = np.bincount(nearest, minlength=FOREGROUND_COLOURS)
+    belief = np.bincount(nearest, weights=probability[found], minlength=FOREGROUND_COLOURS) / np.maximum(counts, 1)
+    believed = (belief >= 0.5) & (counts > 0)
+    if not believed.any():
+        return
+    chroma = centres[:, 1:]  # shading moves a surface's lightness, not its hue
+    apart = np.sqrt(((chroma[:, None] - chroma[believed][None]) ** 2).sum(axis=2)).min(axis=1)
+    doubted = (belief < DOUBTED_COLOUR_P) & (apart > DOUBTED_CHROMA)
+    cut = np.zeros_like(found)
+    cut[found] = doubted[nearest] & (probability[found] < DOUBTED_PIXEL_P)
+    cut = cv2.morphologyEx(cut.astype(np.uint8), cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7))) > 0
+    if np.count_nonzero(cut) < MIN_OBJECT_PIXELS:
+        return
+    labels[cut] = cv2.GC_BGD
+    _grabcut(flattened, labels, FOREIGN_ITERATIONS)
 
 
 def _foreign_pieces(far: np.ndarray, core: np.ndarray, colours: np.ndarray, threshold: float = FOREIGN_COLOUR) -> np.ndarray:
