@@ -109,3 +109,19 @@ def test_rim_test_does_not_judge_an_outline_a_person_beside_it_may_hide(guitar, 
     columns = np.flatnonzero(mask.any(axis=0))
     beside[:, columns[-1] + 1 : columns[-1] + 6] = True
     assert FrontalGate().classify(_context(template, image, mask, margin, view_hidden=beside)).accepted
+
+
+@pytest.mark.parametrize(("degrees", "frontal"), [(0.0, True), (10.0, True), (-10.0, True), (-30.0, False)])
+def test_neck_slide_and_side_wall_agreeing_on_one_turn_reject_a_view_each_alone_accepts(guitar, template, degrees, frontal):
+    """Turned right-towards by 30°, the slab's neck slides left by 4.9 % of the body's width and its right wall
+    shows 10 % wider than its left: each under its own margin (6.5 %, 13 %), on average 78 % of them: past the shipped 60 %."""
+    settings = Plugins().settings("guitar")
+    image, mask = _view(guitar, "yaw", degrees)
+    context = _context(template, image, mask, settings["rim_margin"])
+    context.settings |= {"parallax_margin": settings["parallax_margin"], "neck_wall_margin": settings["neck_wall_margin"]}
+    decision = FrontalGate().classify(context)
+    assert decision.accepted is frontal
+    if not frontal:
+        assert "side wall" in decision.reason and "neck" in decision.reason and "right" in decision.reason
+        context.settings["neck_wall_margin"] = 1.0
+        assert FrontalGate().classify(context).accepted

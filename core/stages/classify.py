@@ -71,7 +71,7 @@ class ClassifierContext:
     """What every classifier may look at; silhouette agreements are computed once and shared.
 
     ``settings`` needs ``max_angle_deg`` (rotation searched) and ``frontal_threshold``;
-    ``turned_margin``, ``mirror_margin``, ``parallax_margin``, ``rim_margin``, ``contact_pair_margin`` and
+    ``turned_margin``, ``mirror_margin``, ``parallax_margin``, ``rim_margin``, ``neck_wall_margin``, ``contact_pair_margin`` and
     ``underside_margin`` are optional (default: the core settings', which leave those tests off).
     """
 
@@ -181,7 +181,7 @@ def silhouette_agreement(object_mask: np.ndarray, renders: dict[str, TemplateRen
 class FrontalGate:
     """Rejects views too far from the family's canonical view (the paper allows about ±10°).
 
-    Five silhouette tests and two image tests, all training-free:
+    Five silhouette tests and three image tests, all training-free:
 
     - score = best over subtypes of IoU x :func:`foreshortening` must reach the family's
       ``frontal_threshold``: IoU alone barely drops when a car turns (a front view of a
@@ -209,6 +209,13 @@ class FrontalGate:
       :mod:`frontal3d.stages.rim_band`). This is the one test that sees a guitar pitched
       (tipped about image-right), whose outline is just a shorter one; off (1.0) unless
       the family sets it, and skipped when the outline is partly hidden.
+    - the neck's slide and the side wall's left-right gap, when they point to the same turn
+      about the neck (turned left-towards, the neck moves right and the left wall shows),
+      each as a share of its own test's margin (``parallax_margin``, ``rim_margin``), may not
+      average more than ``neck_wall_margin``. Each stays under its own margin on a
+      thin-walled electric turned 45°, but noise on a frontal view points either way, so
+      only agreeing cues are pooled; off (1.0: an average past 1 has one cue past its own
+      margin) unless the family sets it, skipped when the outline is partly hidden.
     - the outline's ground contacts may not split into a pair at both axles further apart
       than ``contact_pair_margin`` of its length (see :mod:`frontal3d.stages.ground_contacts`).
       This catches a car turned about image-up, whose far wheels come out beside the near
@@ -288,6 +295,22 @@ def _side_wall_shows(context: ClassifierContext, margin: float) -> str | None:
             f"than along the opposite edge (at most {margin:.1%} in a {context.family.canonical_view} view)")
 
 
+def _neck_and_wall_agree(context: ClassifierContext, margin: float) -> str | None:
+    """The neck's slide and the side wall both point to one turn about the neck (see :class:`FrontalGate`)."""
+    offset = context.parallax_evidence().offset
+    bands = context.rim_evidence().bands
+    wall = bands.get("left", 0.0) - bands.get("right", 0.0) if {"left", "right"} <= bands.keys() else 0.0
+    if offset * wall <= 0:
+        return None
+    own = {name: float(context.settings.get(name, CORE_FAMILY_SETTINGS[name])) for name in ("parallax_margin", "rim_margin")}
+    share = 0.5 * (abs(offset) / own["parallax_margin"] + abs(wall) / own["rim_margin"])
+    if share <= margin:
+        return None
+    return (f" sideways: its neck runs {abs(offset):.1%} of the body's width beside the body's midline and its side wall "
+            f"shows {abs(wall):.1%} of it wider on the {'left' if wall > 0 else 'right'}, as one turn about the neck makes "
+            f"(on average {share:.0%} of those tests' margins, at most {margin:.0%} in a {context.family.canonical_view} view)")
+
+
 def _far_wheels_show(context: ClassifierContext, margin: float) -> str | None:
     """Both axles stand on a pair of contacts (:mod:`frontal3d.stages.ground_contacts`)."""
     contacts = context.contact_evidence()
@@ -316,6 +339,7 @@ TURN_TESTS: tuple[tuple[str, Callable[[ClassifierContext, float], str | None], b
     ("mirror_margin", _lopsided, True),
     ("parallax_margin", _neck_beside_midline, True),
     ("rim_margin", _side_wall_shows, True),
+    ("neck_wall_margin", _neck_and_wall_agree, True),
     ("contact_pair_margin", _far_wheels_show, True),
     ("underside_margin", _floor_shows, True),
 )
