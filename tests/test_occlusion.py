@@ -20,7 +20,8 @@ from frontal3d.occluders import _detect, _Models, detect_arms_and_hands, detect_
 from frontal3d.pipeline import separate_objects
 from frontal3d.render import TemplateRenders
 from frontal3d.stages.classify import SubtypeClassifier
-from frontal3d.stages.occlusion import VisibleAgreementContext, hidden_by, in_front, occluded_at_full_resolution, rebuild_silhouette
+from frontal3d.stages.occlusion import (VisibleAgreementContext, find_occluders, hidden_by, in_front, occluded_at_full_resolution,
+                                       rebuild_silhouette, shown_in_front)
 
 SKIN = (224, 172, 135)
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -45,8 +46,7 @@ def _iou(a: np.ndarray, b: np.ndarray) -> float:
     return float((a & b).sum() / (a | b).sum())
 
 
-@pytest.fixture
-def occluded_ellipse():
+def _occluded_ellipse():
     """A red ellipse with a skin-coloured arm across its edge; the template is a slightly different ellipse."""
     shape = (300, 400)
     truth = _ellipse(shape, (200, 150), (150, 100))
@@ -56,6 +56,11 @@ def occluded_ellipse():
     image[truth] = (180, 40, 40)
     image[arm] = SKIN
     return image, truth, template, arm
+
+
+@pytest.fixture
+def occluded_ellipse():
+    return _occluded_ellipse()
 
 
 def test_an_arm_across_the_edge_is_rebuilt_from_the_template(occluded_ellipse):
@@ -725,3 +730,45 @@ def test_a_head_over_the_waist_does_not_flip_the_subtype():
         decision = SubtypeClassifier().classify(context)
         assert decision.label == subtype and decision.confidence > 0.8, decision
     assert contexts["classical"].subtype_agreement()["classical"].iou > 0.97
+
+
+def _arm_band_over(arm_in_front: bool):
+    """A red ellipse and a detected arm band across it, reaching off it: the band shows skin off
+    the object, and over it skin (the arm in front) or the ellipse's red (the arm behind)."""
+    image, truth, _template, arm = _occluded_ellipse()
+    if not arm_in_front:
+        image[arm & truth] = (180, 40, 40)
+    return image, truth, arm
+
+
+def test_a_detected_arm_behind_the_object_is_not_an_occluder():
+    """A pose model draws the arm of a person behind a guitar across it: over the object the
+    band shows the object's colours, so only its pixels off the object stay occluders."""
+    image, truth, arm = _arm_band_over(arm_in_front=False)
+    judged = shown_in_front(arm, image, truth)
+    assert np.array_equal(judged & ~truth, arm & ~truth)
+    assert (judged & truth).sum() < 0.02 * (arm & truth).sum()
+
+
+def test_a_detected_arm_in_front_of_the_object_stays_an_occluder():
+    image, truth, arm = _arm_band_over(arm_in_front=True)
+    judged = shown_in_front(arm, image, truth)
+    assert (judged & truth).sum() > 0.95 * (arm & truth).sum()
+
+
+def test_a_detected_hand_wholly_on_the_object_stays_an_occluder():
+    """With nothing of it seen off the object its colours are unknown: nothing is dropped."""
+    image, truth, _template, _arm_mask = _occluded_ellipse()
+    hand = _ellipse(truth.shape, (200, 150), (20, 15))
+    image[hand] = (180, 40, 40)  # even if it looks like the object
+    assert np.array_equal(shown_in_front(hand, image, truth), hand)
+
+
+def test_the_users_occluder_mask_is_not_judged_by_colour():
+    """What the user marks stands as given; only the detectors' masks are judged."""
+    image, truth, arm = _arm_band_over(arm_in_front=False)
+    nobody = SimpleNamespace(hook=SimpleNamespace(frontal3d_occluders=lambda **_: [arm]))
+    detected = find_occluders(nobody, image, truth, {}, None)
+    given = find_occluders(SimpleNamespace(hook=SimpleNamespace(frontal3d_occluders=lambda **_: [])), image, truth, {}, arm)
+    assert (detected & truth).sum() < 0.02 * (arm & truth).sum()
+    assert np.array_equal(given, arm)

@@ -19,6 +19,7 @@ from frontal3d.stages.align import Similarity, warp_mask
 from frontal3d.stages.boundary import default_k, match_contours, trace_contour
 from frontal3d.stages.classify import Agreement, ClassifierContext, silhouette_agreement
 from frontal3d.stages.regions import reconstruct_region_map
+from frontal3d.stages.segment import distance_to_colours
 from scipy.ndimage import binary_fill_holes
 
 #: Reach of an occluder, as a fraction of the working image's long side (the object's size,
@@ -28,6 +29,12 @@ from scipy.ndimage import binary_fill_holes
 OCCLUDER_REACH = 0.02
 #: Occluded boundary runs separated by fewer visible points than this are one part.
 MIN_VISIBLE_GAP = 4
+#: A detected occluder's pixels on the object vote, by colour, whether they show the occluder
+#: or the object; the votes are averaged over this fraction of the object's size.
+COLOUR_VOTE_WINDOW = 0.03
+#: With fewer of its pixels seen off the object the occluder's colours are unknown: all its
+#: pixels on the object stay occluded (a close-up hand lying wholly on the guitar).
+MIN_COLOUR_REFERENCE = 50
 
 
 @dataclass
@@ -69,12 +76,44 @@ class RebuiltSilhouette:
 def find_occluders(plugins: Any, image: np.ndarray, object_mask: np.ndarray, settings: dict[str, Any], user_mask: np.ndarray | None) -> np.ndarray | None:
     """OR of every occluder plugin's mask and the user's; None when nothing occludes."""
     found = [np.asarray(m, dtype=bool) for m in plugins.hook.frontal3d_occluders(image=image, object_mask=object_mask, settings=settings) if m is not None]
+    if found:
+        found = [shown_in_front(np.logical_or.reduce(found), image, object_mask)]
     if user_mask is not None:
         found.append(user_mask)
     if not found:
         return None
     combined = np.logical_or.reduce(found)
     return combined if combined.any() else None
+
+
+def shown_in_front(detected: np.ndarray, image: np.ndarray, object_mask: np.ndarray) -> np.ndarray:
+    """The detected occluder without its pixels on the object that show the object.
+
+    A pose model draws a guitarist's arm across the guitar whether the arm is in front or
+    behind it, and the person segmenter counts a held guitar as the person. Where the
+    occluder lies on the object, each pixel is compared with the occluder's own colours
+    (its pixels off the object) and the object's (its pixels away from the occluder); the
+    pixels the object's colours explain better, by a vote averaged over COLOUR_VOTE_WINDOW,
+    are the object seen. The user's occluder mask is not judged (see :func:`find_occluders`).
+    """
+    detected = np.asarray(detected, dtype=bool)
+    object_mask = np.asarray(object_mask, dtype=bool)
+    on_object = detected & object_mask
+    rows, cols = np.nonzero(object_mask)
+    if not on_object.any() or np.count_nonzero(detected & ~object_mask) < MIN_COLOUR_REFERENCE:
+        return detected
+    size = max(np.ptp(rows), np.ptp(cols)) + 1
+    window = max(3, round(COLOUR_VOTE_WINDOW * size))
+    grown = cv2.dilate(detected.astype(np.uint8), _disc(max(1, window // 2))) > 0
+    seen_object = object_mask & ~grown
+    if np.count_nonzero(seen_object) < MIN_COLOUR_REFERENCE:
+        return detected
+    lab = cv2.cvtColor(np.ascontiguousarray(image[..., :3], dtype=np.uint8), cv2.COLOR_RGB2Lab).astype(np.float32)
+    pixels = lab[on_object][:, None]
+    occluder_like = np.zeros(detected.shape, np.float32)
+    occluder_like[on_object] = distance_to_colours(pixels, lab[detected & ~object_mask])[:, 0] < distance_to_colours(pixels, lab[seen_object])[:, 0]
+    votes = cv2.blur(occluder_like, (window, window)) / np.maximum(cv2.blur(on_object.astype(np.float32), (window, window)), 1e-6)
+    return (detected & ~object_mask) | (on_object & (votes >= 0.5))
 
 
 def hidden_by(occluders: np.ndarray, object_mask: np.ndarray) -> np.ndarray:

@@ -241,7 +241,7 @@ def _initial_labels(lab: np.ndarray, background: np.ndarray, border_mask: np.nda
     # Distance to the nearest border colour after flattening: one colour for a plain or
     # graded background, a few for a scene (grass, kerb, road).
     smoothed = cv2.GaussianBlur(residual, (0, 0), 1.5)
-    distance = _distance_to_colours(smoothed, smoothed[border_mask])
+    distance = distance_to_colours(smoothed, smoothed[border_mask])
     # Border pixels are the background's own spread (noise, texture): beyond it is "different".
     spread = float(np.percentile(distance[border_mask], 98))
     margin = (STRONG_DIFFERENCE - 1) * spread
@@ -257,7 +257,7 @@ def _initial_labels(lab: np.ndarray, background: np.ndarray, border_mask: np.nda
     weak_threshold = max(4.0, float(np.percentile(offset[border_mask], 90)))
     core = cv2.erode(different.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0  # no edge blends
     if core.any():
-        object_like = _distance_to_colours(smoothed, smoothed[core]) < OBJECT_LIKENESS * distance
+        object_like = distance_to_colours(smoothed, smoothed[core]) < OBJECT_LIKENESS * distance
         weak = cv2.morphologyEx(((offset > weak_threshold) & object_like).astype(np.uint8), cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7)))
         _, weak_labels = cv2.connectedComponents(weak | different.astype(np.uint8), connectivity=8)
         different |= np.isin(weak_labels, np.unique(weak_labels[different])) & (weak_labels > 0)
@@ -386,7 +386,7 @@ def _foreign_pieces(far: np.ndarray, core: np.ndarray, colours: np.ndarray, thre
     if not far.any() or np.count_nonzero(core) < MIN_OBJECT_PIXELS:
         return np.zeros_like(far)
     count, labels = cv2.connectedComponents(far.astype(np.uint8), connectivity=8)
-    distance = _distance_to_colours(colours[far][:, None], colours[core])[:, 0]
+    distance = distance_to_colours(colours[far][:, None], colours[core])[:, 0]
     medians = np.asarray(ndimage.median(distance, labels[far], np.arange(1, count)))
     return np.isin(labels, 1 + np.flatnonzero(medians > threshold))
 
@@ -457,7 +457,7 @@ def _foreground(labels: np.ndarray) -> np.ndarray:
     return (labels == cv2.GC_FGD) | (labels == cv2.GC_PR_FGD)
 
 
-def _distance_to_colours(image: np.ndarray, samples: np.ndarray, clusters: int = 6) -> np.ndarray:
+def distance_to_colours(image: np.ndarray, samples: np.ndarray, clusters: int = 6) -> np.ndarray:
     """Each pixel's distance to the nearest of a few k-means clusters of ``samples``' colours."""
     samples = np.ascontiguousarray(samples.reshape(-1, 3)[:: max(1, len(samples) // MAX_CLUSTER_SAMPLES)], dtype=np.float32)
     k = min(clusters, len(samples))
@@ -610,7 +610,7 @@ def _background_like(rgb: np.ndarray) -> np.ndarray:
     """Pixels whose colour is as close to the image border's colours as most border pixels are."""
     lab = cv2.GaussianBlur(cv2.cvtColor(rgb, cv2.COLOR_RGB2LAB).astype(np.float32), (0, 0), 1.5)
     border = _border_mask(rgb.shape[:2])
-    distance = _distance_to_colours(lab, lab[border])
+    distance = distance_to_colours(lab, lab[border])
     typical = max(1.0, float(np.median(distance[border])))
     return distance <= BACKGROUND_LIKE_DISTANCE * typical
 
