@@ -359,10 +359,7 @@ def _cut_doubted_colours(labels: np.ndarray, probability: np.ndarray, colours: n
     samples = np.ascontiguousarray(colours[found], dtype=np.float32)
     if len(samples) < FOREGROUND_COLOURS * MIN_OBJECT_PIXELS:
         return
-    criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 20, 1.0)
-    cv2.setRNGSeed(0)
-    step = max(1, len(samples) // MAX_CLUSTER_SAMPLES)
-    _, _, centres = cv2.kmeans(samples[::step], FOREGROUND_COLOURS, None, criteria, 2, cv2.KMEANS_PP_CENTERS)
+    centres = _colour_clusters(samples, FOREGROUND_COLOURS)
     nearest = np.argmin(((samples[:, None] - centres[None]) ** 2).sum(axis=2), axis=1)
     counts = np.bincount(nearest, minlength=FOREGROUND_COLOURS)
     belief = np.bincount(nearest, weights=probability[found], minlength=FOREGROUND_COLOURS) / np.maximum(counts, 1)
@@ -459,14 +456,19 @@ def _foreground(labels: np.ndarray) -> np.ndarray:
 
 def distance_to_colours(image: np.ndarray, samples: np.ndarray, clusters: int = 6) -> np.ndarray:
     """Each pixel's distance to the nearest of a few k-means clusters of ``samples``' colours."""
-    samples = np.ascontiguousarray(samples.reshape(-1, 3)[:: max(1, len(samples) // MAX_CLUSTER_SAMPLES)], dtype=np.float32)
-    k = min(clusters, len(samples))
-    criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 20, 1.0)
-    cv2.setRNGSeed(0)
-    _, _, centres = cv2.kmeans(samples, k, None, criteria, 2, cv2.KMEANS_PP_CENTERS)
+    centres = _colour_clusters(samples, clusters)
     flat = image.reshape(-1, 1, 3)
     distance = np.sqrt(((flat - centres[None]) ** 2).sum(axis=2)).min(axis=1)
     return distance.reshape(image.shape[:2])
+
+
+def _colour_clusters(samples: np.ndarray, clusters: int) -> np.ndarray:
+    """Up to ``clusters`` k-means centres of ``samples``' colours (n x 3), seeded so every run agrees."""
+    samples = np.ascontiguousarray(samples.reshape(-1, 3)[:: max(1, len(samples) // MAX_CLUSTER_SAMPLES)], dtype=np.float32)
+    criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 20, 1.0)
+    cv2.setRNGSeed(0)
+    _, _, centres = cv2.kmeans(samples, min(clusters, len(samples)), None, criteria, 2, cv2.KMEANS_PP_CENTERS)
+    return centres
 
 
 def _touches_all_borders(mask: np.ndarray) -> bool:
