@@ -99,9 +99,9 @@ def shown_in_front(detected: np.ndarray, image: np.ndarray, object_mask: np.ndar
     detected = np.asarray(detected, dtype=bool)
     object_mask = np.asarray(object_mask, dtype=bool)
     on_object = detected & object_mask
-    rows, cols = np.nonzero(object_mask)
     if not on_object.any() or np.count_nonzero(detected & ~object_mask) < MIN_COLOUR_REFERENCE:
         return detected
+    rows, cols = np.nonzero(object_mask)
     size = max(np.ptp(rows), np.ptp(cols)) + 1
     window = max(3, round(COLOUR_VOTE_WINDOW * size))
     grown = cv2.dilate(detected.astype(np.uint8), _disc(max(1, window // 2))) > 0
