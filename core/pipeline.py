@@ -442,7 +442,7 @@ def segment_object(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dic
     The mask benchmark (frontal3d.eval_masks) scores exactly the largest object's mask."""
     report = report or Report()
     found = _segment(plugins, rgb, fam, settings, user_mask, report)
-    occluders = occlusion.find_occluders(plugins, rgb, found, settings, user_occluders)
+    occluders = occlusion.find_occluders(plugins, rgb, found, settings, user_occluders, report.data)
     objects = separate_objects(found, occluders, fam)
     if settings["shape_prior"] and report.data["segmenter"] == "GrabCut (training-free)":
         # The largest only (2-4 s each): the others are judged only when it is turned down or with --all.

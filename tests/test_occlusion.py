@@ -768,7 +768,9 @@ def test_the_users_occluder_mask_is_not_judged_by_colour():
     """What the user marks stands as given; only the detectors' masks are judged."""
     image, truth, arm = _arm_band_over(arm_in_front=False)
     nobody = SimpleNamespace(hook=SimpleNamespace(frontal3d_occluders=lambda **_: [arm]))
-    detected = find_occluders(nobody, image, truth, {}, None)
+    notes: dict = {}
+    detected = find_occluders(nobody, image, truth, {}, None, notes)
     given = find_occluders(SimpleNamespace(hook=SimpleNamespace(frontal3d_occluders=lambda **_: [])), image, truth, {}, arm)
     assert (detected & truth).sum() < 0.02 * (arm & truth).sum()
+    assert notes["detected_occluder_pixels_seen_as_object"] == np.count_nonzero(arm & ~detected) > 0.98 * (arm & truth).sum()
     assert np.array_equal(given, arm)

@@ -73,11 +73,18 @@ class RebuiltSilhouette:
         }
 
 
-def find_occluders(plugins: Any, image: np.ndarray, object_mask: np.ndarray, settings: dict[str, Any], user_mask: np.ndarray | None) -> np.ndarray | None:
-    """OR of every occluder plugin's mask and the user's; None when nothing occludes."""
+def find_occluders(plugins: Any, image: np.ndarray, object_mask: np.ndarray, settings: dict[str, Any], user_mask: np.ndarray | None,
+                   notes: dict[str, Any] | None = None) -> np.ndarray | None:
+    """OR of every occluder plugin's mask and the user's; None when nothing occludes.
+
+    ``notes`` (the report's data) gets how many detected pixels on the object were judged
+    to show the object (:func:`shown_in_front`), so a user can see why an arm was not rebuilt."""
     found = [np.asarray(m, dtype=bool) for m in plugins.hook.frontal3d_occluders(image=image, object_mask=object_mask, settings=settings) if m is not None]
     if found:
-        found = [shown_in_front(np.logical_or.reduce(found), image, object_mask)]
+        detected = np.logical_or.reduce(found)
+        found = [shown_in_front(detected, image, object_mask)]
+        if notes is not None:
+            notes["detected_occluder_pixels_seen_as_object"] = int(np.count_nonzero(detected & ~found[0]))
     if user_mask is not None:
         found.append(user_mask)
     if not found:
