@@ -497,6 +497,24 @@ def test_only_people_reaching_into_the_template_stand_in_front():
     assert not (found & object_mask).any()
 
 
+def test_a_person_behind_a_slimmer_object_than_the_template_stays_behind():
+    """A guitarist's body behind a slim bass: the template, wider than the body, expects the
+    object in a band along both sides, where the person is seen. Those bands are the object's
+    true outline, not a person in front; an arm band across the body still is in front."""
+    shape = (200, 200)
+    template = _ellipse(shape, (100, 100), (45, 80))
+    truth = _ellipse(shape, (100, 100), (38, 80))
+    person = np.zeros(shape, bool)
+    person[60:, 30:170] = True
+    arm = np.zeros(shape, bool)
+    arm[120:142, 40:170] = True
+    object_mask = truth & ~arm
+    found = in_front(person, object_mask, template)
+    assert found[arm & truth].all()
+    sides = template & ~truth & ~cv2.dilate(arm.astype(np.uint8), np.ones((31, 31), np.uint8)).astype(bool)
+    assert not found[sides].any()
+
+
 def test_a_person_over_the_lower_body_does_not_make_a_guitar_look_turned():
     """The frontal gate's foreshortening compares the spreads of the object and the template:
     a torso over the lower body shortens the object seen, and compared with the whole

@@ -35,6 +35,10 @@ COLOUR_VOTE_WINDOW = 0.03
 #: With fewer of its pixels seen off the object the occluder's colours are unknown: all its
 #: pixels on the object stay occluded (a close-up hand lying wholly on the guitar).
 MIN_COLOUR_REFERENCE = 50
+#: People's pixels judged in front of the object must hide a stretch at least twice this
+#: fraction of the template's size across: a person behind the object, next to a template
+#: wider than the object, claims only a band along the object's outline.
+IN_FRONT_DEPTH = 0.04
 
 
 @dataclass
@@ -141,7 +145,10 @@ def in_front(people: np.ndarray, object_mask: np.ndarray, aligned_template_mask:
     surroundings up to twice that reach, off the object, are added where they cross the
     outline. A body behind the object meets the template only along its edge (the
     alignment's error), so it is left out and the outline it borders stays the one seen;
-    people's pixels on the object (a held guitar the segmenter counts as the person) stay object.
+    so is a body behind an object slimmer than the template (a bass against an electric
+    template), seen only in a band along the outline: what stands in front must hide a
+    stretch at least twice IN_FRONT_DEPTH across. People's pixels on the object (a held
+    guitar the segmenter counts as the person) stay object.
     """
     people = np.asarray(people, dtype=bool)
     off_object = ~np.asarray(object_mask, dtype=bool)
@@ -149,7 +156,8 @@ def in_front(people: np.ndarray, object_mask: np.ndarray, aligned_template_mask:
     rows, cols = np.nonzero(template)
     if len(rows) == 0:
         return np.zeros_like(people)
-    radius = max(1, round(OCCLUDER_REACH * (max(np.ptp(rows), np.ptp(cols)) + 1)))
+    size = max(np.ptp(rows), np.ptp(cols)) + 1
+    radius = max(1, round(OCCLUDER_REACH * size))
     unseen = off_object & (cv2.erode(template, _disc(radius)) > 0)
     _count, pieces = cv2.connectedComponents(unseen.astype(np.uint8))
     # The person segmenter's mask spills a few pixels over the object's edge (and takes in a
@@ -160,7 +168,10 @@ def in_front(people: np.ndarray, object_mask: np.ndarray, aligned_template_mask:
     inside = np.isin(pieces, touched[touched > 0])
     if not inside.any():
         return np.zeros_like(people)
-    return (people | inside) & off_object & (cv2.dilate(inside.astype(np.uint8), _disc(2 * radius)) > 0)
+    claimed = (people | inside) & off_object & (cv2.dilate(inside.astype(np.uint8), _disc(2 * radius)) > 0)
+    depth = _disc(max(1, round(IN_FRONT_DEPTH * size)))
+    deep = cv2.morphologyEx(claimed.astype(np.uint8), cv2.MORPH_OPEN, depth)
+    return claimed & (cv2.dilate(deep, depth) > 0)
 
 
 @dataclass
