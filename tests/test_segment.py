@@ -345,6 +345,16 @@ def test_a_learned_probability_cuts_off_a_blob_of_another_hue_within_its_reach()
     assert _iou(found, truth) > 0.97
 
 
+def test_a_network_that_sees_the_object_faintly_still_cuts_off_a_blob_of_another_hue():
+    # The same scene seen by a network unsure of the whole car (p at most 0.45): no colour has a
+    # mean p of 0.5, so the car's best-believed colours stand for it and the blob's is still cut.
+    image, truth, blob = _car_before_a_blue_blob(13, (300, 190), (60, 30))
+    beyond = (blob[..., 0] > 0.5) & ~truth
+    found = grabcut_segment(image, object_probability=0.45 * _network_like_probability(truth, 48))
+    assert found is not None and (found & beyond).sum() < 0.02 * beyond.sum()
+    assert _iou(found, truth) > 0.97
+
+
 def test_a_learned_probability_keeps_a_part_of_the_object_s_colour_it_missed():
     # A long boom of the car's colour reaches far beyond what the network saw: it stays,
     # though the background darkens under it (its colour is judged as seen, not flattened).

@@ -83,14 +83,17 @@ FOREIGN_ROUNDS = 3
 #: reach of GrabCut's foreground where that foreground runs up against it.
 REACH_ROUNDS = 3
 #: Doubted colours (:func:`_cut_doubted_colours`): GrabCut's foreground is split into this many
-#: colours (k-means, Lab); a colour the network believes has mean p(object) >= 0.5 over its pixels,
-#: one it doubts has a mean below :data:`DOUBTED_COLOUR_P` and a hue (a, b) more than
-#: :data:`DOUBTED_CHROMA` from every believed one. Its pixels at p < :data:`DOUBTED_PIXEL_P`
+#: colours (k-means, Lab); a colour the network believes has mean p(object) >= 0.5 over its pixels
+#: (or, when no colour reaches 0.5, at least :data:`BELIEVED_SHARE` of the best colour's mean and
+#: :data:`BELIEVED_FLOOR`), one it doubts has a mean below :data:`DOUBTED_COLOUR_P` and a hue (a, b)
+#: more than :data:`DOUBTED_CHROMA` from every believed one. Its pixels at p < :data:`DOUBTED_PIXEL_P`
 #: (opened 7 px, so no edge blend) become sure background. Chosen on the odd-indexed renders.
 FOREGROUND_COLOURS = 8
 DOUBTED_COLOUR_P = 0.45
 DOUBTED_PIXEL_P = 0.25
 DOUBTED_CHROMA = 20.0
+BELIEVED_SHARE = 0.8
+BELIEVED_FLOOR = 0.3
 
 
 def mask_from_alpha(image: np.ndarray) -> np.ndarray | None:
@@ -363,7 +366,9 @@ def _cut_doubted_colours(labels: np.ndarray, probability: np.ndarray, colours: n
     nearest = np.argmin(((samples[:, None] - centres[None]) ** 2).sum(axis=2), axis=1)
     counts = np.bincount(nearest, minlength=FOREGROUND_COLOURS)
     belief = np.bincount(nearest, weights=probability[found], minlength=FOREGROUND_COLOURS) / np.maximum(counts, 1)
-    believed = (belief >= 0.5) & (counts > 0)
+    # An object the network sees faintly (a glider's thin wings, a guitar body over clutter) may
+    # have no colour at 0.5, while a blob touching it has far less: its best colours stand for it.
+    believed = (belief >= min(0.5, max(BELIEVED_FLOOR, BELIEVED_SHARE * belief.max()))) & (counts > 0)
     if not believed.any():
         return
     chroma = centres[:, 1:]  # shading moves a surface's lightness, not its hue
