@@ -95,6 +95,10 @@ class ClassifierContext:
         """In-plane rotation (radians, either way) the template placements search."""
         return float(np.deg2rad(float(self.settings.get("max_angle_deg", 180.0))))
 
+    def margin(self, name: str) -> float:
+        """A frontal-gate test's margin: the family's setting, else the core's (1 = the test is off)."""
+        return float(self.settings.get(name, CORE_FAMILY_SETTINGS[name]))
+
     def view_agreement(self) -> dict[str, Agreement]:
         """The agreement the frontal gate judges the view by (the same unless a context hides more from it)."""
         return self.agreement()
@@ -247,7 +251,7 @@ class FrontalGate:
             return Decision(name=self.name, label="not frontal", confidence=best, accepted=False, reason=reason)
         if threshold > 0:
             for setting, judge, whole_outline_only in TURN_TESTS:
-                margin = float(context.settings.get(setting, CORE_FAMILY_SETTINGS[setting]))
+                margin = context.margin(setting)
                 if margin >= 1.0 or (whole_outline_only and context.outline_partly_hidden()):
                     continue
                 evidence = judge(context, margin)
@@ -302,8 +306,7 @@ def _neck_and_wall_agree(context: ClassifierContext, margin: float) -> str | Non
     wall = bands.get("left", 0.0) - bands.get("right", 0.0) if {"left", "right"} <= bands.keys() else 0.0
     if offset * wall <= 0:
         return None
-    own = {name: float(context.settings.get(name, CORE_FAMILY_SETTINGS[name])) for name in ("parallax_margin", "rim_margin")}
-    share = 0.5 * (abs(offset) / own["parallax_margin"] + abs(wall) / own["rim_margin"])
+    share = 0.5 * (abs(offset) / context.margin("parallax_margin") + abs(wall) / context.margin("rim_margin"))
     if share <= margin:
         return None
     return (f" sideways: its neck runs {abs(offset):.1%} of the body's width beside the body's midline and its side wall "
