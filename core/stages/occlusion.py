@@ -112,9 +112,7 @@ def shown_in_front(detected: np.ndarray, image: np.ndarray, object_mask: np.ndar
     on_object = detected & object_mask
     if not on_object.any() or np.count_nonzero(detected & ~object_mask) < MIN_COLOUR_REFERENCE:
         return detected
-    rows, cols = np.nonzero(object_mask)
-    size = max(np.ptp(rows), np.ptp(cols)) + 1
-    window = max(3, round(COLOUR_VOTE_WINDOW * size))
+    window = max(3, round(COLOUR_VOTE_WINDOW * _extent(object_mask)))
     grown = cv2.dilate(detected.astype(np.uint8), _disc(max(1, window // 2))) > 0
     seen_object = object_mask & ~grown
     if np.count_nonzero(seen_object) < MIN_COLOUR_REFERENCE:
@@ -130,9 +128,7 @@ def shown_in_front(detected: np.ndarray, image: np.ndarray, object_mask: np.ndar
 def hidden_by(occluders: np.ndarray, object_mask: np.ndarray) -> np.ndarray:
     """Pixels whose membership in the silhouette the occluders leave unknown: the occluders
     grown by OCCLUDER_REACH of the object's size (an arm's soft edge hides the outline too)."""
-    ys, xs = np.nonzero(object_mask)
-    size = max(np.ptp(ys), np.ptp(xs)) + 1 if len(ys) else max(object_mask.shape)
-    radius = max(1, round(OCCLUDER_REACH * size))
+    radius = max(1, round(OCCLUDER_REACH * _extent(object_mask)))
     return cv2.dilate(np.asarray(occluders, dtype=np.uint8), _disc(radius)) > 0
 
 
@@ -153,10 +149,9 @@ def in_front(people: np.ndarray, object_mask: np.ndarray, aligned_template_mask:
     people = np.asarray(people, dtype=bool)
     off_object = ~np.asarray(object_mask, dtype=bool)
     template = np.asarray(aligned_template_mask, dtype=np.uint8)
-    rows, cols = np.nonzero(template)
-    if len(rows) == 0:
+    if not template.any():
         return np.zeros_like(people)
-    size = max(np.ptp(rows), np.ptp(cols)) + 1
+    size = _extent(template)
     radius = max(1, round(OCCLUDER_REACH * size))
     unseen = off_object & (cv2.erode(template, _disc(radius)) > 0)
     _count, pieces = cv2.connectedComponents(unseen.astype(np.uint8))
@@ -301,6 +296,12 @@ def rebuild_regions(regions: np.ndarray, object_mask: np.ndarray, occluded: np.n
     """Give every pixel of the (rebuilt) mask a region, filling occluded ones from neighbours."""
     needs_fill = object_mask & ((regions < 0) | occluded)
     return reconstruct_region_map(np.where(object_mask, regions, -1), object_mask, needs_fill)
+
+
+def _extent(mask: np.ndarray) -> int:
+    """The mask's size: the longer side of its bounding box in pixels (the image's long side when empty)."""
+    ys, xs = np.nonzero(mask)
+    return int(max(np.ptp(ys), np.ptp(xs)) + 1) if len(ys) else max(mask.shape)
 
 
 def _disc(radius: int) -> np.ndarray:
