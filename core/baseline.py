@@ -12,6 +12,7 @@ import numpy as np
 import trimesh
 
 from frontal3d.errors import InputError
+from frontal3d.masks import mask_extent
 
 #: Slab thickness / the silhouette's longest side, per family. Guitar and car: the
 #: median ratio of Z extent to longest image-plane extent of the development meshes
@@ -101,8 +102,7 @@ def slab_reconstructor(thickness_ratio: float) -> Callable[[np.ndarray, np.ndarr
         pixel_size = 2.0 * float(camera["half_width"]) / mask.shape[1]
         cx, cy = (float(v) for v in camera["center"])
         origin = (cx - camera["half_width"] + 0.5 * pixel_size, cy + camera["half_width"] - 0.5 * pixel_size)
-        rows, cols = np.nonzero(mask)
-        longest = (max(np.ptp(rows), np.ptp(cols)) + 1) * pixel_size
+        longest = mask_extent(mask) * pixel_size
         return slab_from_mask(mask, pixel_size, thickness_ratio * longest, origin=origin)
 
     return reconstruct

@@ -24,6 +24,7 @@ import numpy as np
 
 from frontal3d.errors import ConfigError
 from frontal3d.family import Family
+from frontal3d.masks import mask_extent
 from frontal3d.stages.classify import Classifier, ClassifierContext, Decision
 
 if TYPE_CHECKING:
@@ -55,7 +56,7 @@ _REQUIRED_KEYS = ("format_version", "task", "family", "classes", "input_size", "
 def crop_square(mask: np.ndarray) -> tuple[int, int, int]:
     """(top, left, side) of the square around the object's box plus margin; it may reach outside the image."""
     ys, xs = np.nonzero(mask)
-    side = int(max(np.ptp(ys), np.ptp(xs)) + 1)
+    side = mask_extent(mask)
     side += 2 * int(np.ceil(CROP_MARGIN * side))
     centre_y, centre_x = (ys.min() + ys.max() + 1) // 2, (xs.min() + xs.max() + 1) // 2
     return int(centre_y - side // 2), int(centre_x - side // 2), side

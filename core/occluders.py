@@ -29,6 +29,8 @@ from typing import Any
 import cv2
 import numpy as np
 
+from frontal3d.masks import mask_extent
+
 log = logging.getLogger("frontal3d")
 
 #: Long side (px) the models see; they work at 256 px internally, more only costs time.
@@ -164,7 +166,7 @@ def _sure_person_off_object(probability: np.ndarray, object_mask: np.ndarray | N
     rows, cols = np.nonzero(on_object)
     if len(rows) == 0:
         return False
-    reach = max(1, round(OFF_OBJECT_REACH * (max(np.ptp(rows), np.ptp(cols)) + 1)))
+    reach = max(1, round(OFF_OBJECT_REACH * mask_extent(on_object)))
     near = cv2.dilate(on_object.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1,) * 2)) > 0
     return (np.count_nonzero((probability > CONFIDENT_PERSON_PROBABILITY) & ~near) >= OFF_OBJECT_SHARE * len(rows)
             or np.count_nonzero((probability > PERSON_PROBABILITY) & ~near) >= OFF_OBJECT_BODY_SHARE * len(rows))

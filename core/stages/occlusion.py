@@ -15,6 +15,7 @@ from typing import Any
 
 import cv2
 import numpy as np
+from frontal3d.masks import mask_extent
 from frontal3d.stages.align import Similarity, warp_mask
 from frontal3d.stages.boundary import default_k, match_contours, trace_contour
 from frontal3d.stages.classify import Agreement, ClassifierContext, silhouette_agreement
@@ -112,7 +113,7 @@ def shown_in_front(detected: np.ndarray, image: np.ndarray, object_mask: np.ndar
     on_object = detected & object_mask
     if not on_object.any() or np.count_nonzero(detected & ~object_mask) < MIN_COLOUR_REFERENCE:
         return detected
-    window = max(3, round(COLOUR_VOTE_WINDOW * _extent(object_mask)))
+    window = max(3, round(COLOUR_VOTE_WINDOW * mask_extent(object_mask)))
     grown = cv2.dilate(detected.astype(np.uint8), _disc(max(1, window // 2))) > 0
     seen_object = object_mask & ~grown
     if np.count_nonzero(seen_object) < MIN_COLOUR_REFERENCE:
@@ -128,7 +129,7 @@ def shown_in_front(detected: np.ndarray, image: np.ndarray, object_mask: np.ndar
 def hidden_by(occluders: np.ndarray, object_mask: np.ndarray) -> np.ndarray:
     """Pixels whose membership in the silhouette the occluders leave unknown: the occluders
     grown by OCCLUDER_REACH of the object's size (an arm's soft edge hides the outline too)."""
-    radius = max(1, round(OCCLUDER_REACH * _extent(object_mask)))
+    radius = max(1, round(OCCLUDER_REACH * mask_extent(object_mask)))
     return cv2.dilate(np.asarray(occluders, dtype=np.uint8), _disc(radius)) > 0
 
 
@@ -151,7 +152,7 @@ def in_front(people: np.ndarray, object_mask: np.ndarray, aligned_template_mask:
     template = np.asarray(aligned_template_mask, dtype=np.uint8)
     if not template.any():
         return np.zeros_like(people)
-    size = _extent(template)
+    size = mask_extent(template)
     radius = max(1, round(OCCLUDER_REACH * size))
     unseen = off_object & (cv2.erode(template, _disc(radius)) > 0)
     _count, pieces = cv2.connectedComponents(unseen.astype(np.uint8))
@@ -296,12 +297,6 @@ def rebuild_regions(regions: np.ndarray, object_mask: np.ndarray, occluded: np.n
     """Give every pixel of the (rebuilt) mask a region, filling occluded ones from neighbours."""
     needs_fill = object_mask & ((regions < 0) | occluded)
     return reconstruct_region_map(np.where(object_mask, regions, -1), object_mask, needs_fill)
-
-
-def _extent(mask: np.ndarray) -> int:
-    """The mask's size: the longer side of its bounding box in pixels (the image's long side when empty)."""
-    ys, xs = np.nonzero(mask)
-    return int(max(np.ptp(ys), np.ptp(xs)) + 1) if len(ys) else max(mask.shape)
 
 
 def _disc(radius: int) -> np.ndarray:

@@ -16,6 +16,7 @@ import cv2
 import numpy as np
 from scipy import ndimage
 
+from frontal3d.masks import mask_extent
 from frontal3d.render import TemplateRenders
 from frontal3d.stages.align import warp_mask
 from frontal3d.stages.classify import Agreement, silhouette_agreement
@@ -574,8 +575,7 @@ def refine_with_shape_prior(image: np.ndarray, mask: np.ndarray, renders: Mappin
 
 def _segment_with_prior(small: np.ndarray, first: np.ndarray, prior: np.ndarray, exclude: np.ndarray | None, reach_fraction: float) -> np.ndarray | None:
     """GrabCut seeded from one placed template (see :func:`refine_with_shape_prior`), or None."""
-    ys, xs = np.nonzero(prior)
-    extent = max(np.ptp(ys), np.ptp(xs)) + 1
+    extent = mask_extent(prior)
     near = _dilated(prior, max(2, round(reach_fraction * extent)))
     core = (cv2.erode(prior.astype(np.uint8), _disc(max(1, round(PRIOR_CORE * extent)))) > 0) & first
     labels = np.full(prior.shape, cv2.GC_PR_BGD, np.uint8)
