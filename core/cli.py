@@ -122,6 +122,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--per-object", type=int, default=5, help="composites per render (default: 5)")
     p.add_argument("--seed", type=int, default=0, help="placement seed; the same seed gives the same composites")
     p.add_argument("--limit", type=int, help="only the first N meshes")
+    p.add_argument("--every", type=int, default=1, help="score every N-th mesh of the sorted listing, under the composites the whole run gives it (default: 1)")
+    p.add_argument("--offset", type=int, default=0, help="start at this index of the listing, below --every (default: 0; 1 with --every 2 = the odd half)")
     _add_set_option(p, "working_resolution=400")
     p.add_argument("-o", "--out", type=Path, default=Path("frontal3d-eval-occlusion"), help="output folder")
     p.set_defaults(run=_cmd_evaluate_occlusion)
@@ -346,7 +348,8 @@ def _cmd_evaluate_occlusion(args: argparse.Namespace) -> int:
     if args.per_object < 1:
         raise ConfigError("--per-object must be at least 1")
     rows = run_occlusion_evaluation(args.family, args.meshes, args.renders, args.occluders, plugins, args.out, seed=args.seed,
-                                    per_object=args.per_object, limit=args.limit, settings=_parse_sets(args.set), progress=sys.stderr.isatty())
+                                    per_object=args.per_object, limit=args.limit, settings=_parse_sets(args.set), progress=sys.stderr.isatty(),
+                                    every=args.every, offset=args.offset)
     print("\n".join(summary_lines(summarize(rows))))
     print(f"wrote {args.out}/composites.csv, summary.csv, images/")
     return 0

@@ -33,7 +33,7 @@ import cv2
 import numpy as np
 
 from frontal3d.errors import ConfigError, Frontal3DError, InputError
-from frontal3d.evaluate import write_csv
+from frontal3d.evaluate import every_nth, write_csv
 from frontal3d.imageio import read_image
 from frontal3d.photo_render import composite
 from frontal3d.pipeline import Report, segment_object
@@ -103,9 +103,7 @@ def render_paths(renders_dir: Path, every: int = 1, offset: int = 0) -> list[tup
     paths = sorted(p for p in Path(renders_dir).glob("*.png") if not p.stem.endswith("_mask"))
     if not paths:
         raise InputError(f"no <id>.png renders in {renders_dir}")
-    if every < 1 or not 0 <= offset < every:
-        raise ConfigError("--every must be at least 1 and --offset in 0 .. every-1")
-    return [(index, path) for index, path in enumerate(paths) if index % every == offset]
+    return every_nth(list(enumerate(paths)), every, offset)
 
 
 def evaluate_masks(plugins: Plugins, family: str, renders_dir: Path, out_dir: Path,

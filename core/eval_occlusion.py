@@ -33,7 +33,8 @@ import cv2
 import numpy as np
 
 from frontal3d.errors import ConfigError, Frontal3DError, InputError, NotFrontalError
-from frontal3d.evaluate import METRIC_KEYS, load_mesh, load_render, write_csv, evaluate_pair
+from frontal3d.evaluate import METRIC_KEYS, evaluate_pair, every_nth, load_mesh, load_render, write_csv
+from frontal3d.masks import mask_extent
 from frontal3d.progress import counter
 
 #: Share of the object the occluder in front hides.
@@ -82,7 +83,7 @@ def arm_occluder(image: np.ndarray, object_mask: np.ndarray, rng: np.random.Gene
     """A skin-toned forearm and hand from the image border over 10-30 % of the object."""
     height, width = object_mask.shape
     ys, xs = np.nonzero(object_mask)
-    size = max(np.ptp(ys), np.ptp(xs)) + 1
+    size = mask_extent(object_mask)
     for _ in range(PLACEMENT_TRIES):
         pick = rng.integers(len(ys))
         hand = np.array([xs[pick], ys[pick]], float)
@@ -161,7 +162,7 @@ def paste_person(image: np.ndarray, object_mask: np.ndarray, cutout: Cutout, mod
     if mode not in PEOPLE_MODES:
         raise InputError(f"unknown people mode {mode!r} (one of {', '.join(PEOPLE_MODES)})")
     ys, xs = np.nonzero(object_mask)
-    size = max(np.ptp(ys), np.ptp(xs)) + 1
+    size = mask_extent(object_mask)
     for _ in range(PLACEMENT_TRIES):
         person_height = rng.uniform(0.5, 1.1) * size
         scale = person_height / cutout.mask.shape[0]
@@ -200,7 +201,7 @@ def _arm_stretch(person: np.ndarray, object_mask: np.ndarray, rng: np.random.Gen
     """A forearm-wide band from the person's side, off the object at chest height, to a point on
     the object's lower part (a strumming arm); the person's pixels in it are in front."""
     ys, xs = np.nonzero(object_mask)
-    size = max(np.ptp(ys), np.ptp(xs)) + 1
+    size = mask_extent(object_mask)
     lower = ys > np.percentile(ys, rng.uniform(50, 75))
     pick = rng.integers(lower.sum())
     target = np.array([xs[lower][pick], ys[lower][pick]])
@@ -272,6 +273,23 @@ def _reconstruct(plugins: Any, family: str, image: np.ndarray, mask: np.ndarray,
     return reconstruct(image, family, mask=mask, occluder_mask=occluder, plugins=plugins, **settings)
 
 
+def selected_composites(kind: str, paths: list[Path], renders_dir: Path, per_object: int, seed: int, every: int = 1,
+                        offset: int = 0) -> Iterator[tuple[Path, np.ndarray, np.ndarray, int, Composite]]:
+    """(mesh path, render, mask, index, composite) for the ``per_object`` composites of each selected mesh.
+
+    The placements of the meshes left out are still drawn, so a mesh meets the same composites
+    in a slice as in the whole run: one seed gives one benchmark, and its halves add up to it.
+    """
+    selected = set(every_nth(paths, every, offset))
+    cutouts = people_cutouts() if kind == "people" else []
+    rng = np.random.default_rng(seed)
+    for number, path in enumerate(paths):
+        image, mask, _camera = load_render(renders_dir, path.stem)
+        for index, composite in enumerate(_composites(kind, image, mask, number * per_object, per_object, rng, cutouts)):
+            if path in selected:
+                yield path, image, mask, index, composite
+
+
 def _composites(kind: str, image: np.ndarray, mask: np.ndarray, first: int, count: int, rng: np.random.Generator,
                 cutouts: list[Cutout]) -> Iterator[Composite]:
     """``count`` composites; for people, the n-th of the whole run (from ``first``) cycles through
@@ -287,11 +305,15 @@ def _composites(kind: str, image: np.ndarray, mask: np.ndarray, first: int, coun
 
 def run_occlusion_evaluation(family: str, meshes_dir: Path, renders_dir: Path, kind: str, plugins: Any, out_dir: Path,
                              seed: int = 0, per_object: int = 5, limit: int | None = None,
-                             settings: dict[str, Any] | None = None, progress: bool = True) -> list[dict]:
+                             settings: dict[str, Any] | None = None, progress: bool = True,
+                             every: int = 1, offset: int = 0) -> list[dict]:
     """Score every render of ``renders_dir`` under ``per_object`` composites of ``kind`` (arms|people).
 
-    Writes ``composites.csv`` (one row per composite), ``summary.csv`` and the composites
-    themselves (``images/<id>_<n>.png`` and ``_occluder.png``) into ``out_dir``.
+    ``every`` and ``offset`` score only every ``every``-th mesh of the sorted listing from
+    ``offset`` (a tuning half and a held-out half), each under the composites the whole run
+    gives it (:func:`selected_composites`). Writes ``composites.csv`` (one row per composite),
+    ``summary.csv`` and the composites themselves (``images/<id>_<n>.png`` and
+    ``_occluder.png``) into ``out_dir``.
     """
     if kind not in ("arms", "people"):
         raise InputError(f"unknown occluders {kind!r} (arms or people)")
@@ -299,19 +321,18 @@ def run_occlusion_evaluation(family: str, meshes_dir: Path, renders_dir: Path, k
     paths = sorted(Path(meshes_dir).glob("*.glb"))[:limit]
     if not paths:
         raise InputError(f"no *.glb meshes in {meshes_dir}")
+    scored = len(every_nth(paths, every, offset))
     out_dir = Path(out_dir)
     (out_dir / "images").mkdir(parents=True, exist_ok=True)
-    cutouts = people_cutouts() if kind == "people" else []
-    rng = np.random.default_rng(seed)
     rows: list[dict] = []
-    bar = counter(len(paths) * per_object, "composite", f"occluded {family} ({kind})", progress)
-    for number, path in enumerate(paths):
-        gt = load_mesh(path)
-        image, mask, _camera = load_render(Path(renders_dir), path.stem)
-        clean = _scores(_reconstruct(plugins, family, image, mask, None, settings), gt)
-        for index, composite in enumerate(_composites(kind, image, mask, number * per_object, per_object, rng, cutouts)):
-            rows.append(_composite_row(plugins, family, path.stem, index, composite, image, mask, gt, clean, kind, settings, out_dir))
-            bar.update(1)
+    bar = counter(scored * per_object, "composite", f"occluded {family} ({kind})", progress)
+    gt, clean = None, None
+    for path, image, mask, index, composite in selected_composites(kind, paths, Path(renders_dir), per_object, seed, every, offset):
+        if index == 0:
+            gt = load_mesh(path)
+            clean = _scores(_reconstruct(plugins, family, image, mask, None, settings), gt)
+        rows.append(_composite_row(plugins, family, path.stem, index, composite, image, mask, gt, clean, kind, settings, out_dir))
+        bar.update(1)
     bar.close()
     write_csv(out_dir / "composites.csv", COMPOSITE_FIELDS, rows)
     summary = summarize(rows)

@@ -49,7 +49,7 @@ import trimesh
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
-from frontal3d.errors import InputError
+from frontal3d.errors import ConfigError, InputError
 from frontal3d.photo_render import frontal_camera
 from frontal3d.photo_render import render_frontal as photo_render_frontal
 from frontal3d.progress import counter
@@ -267,6 +267,14 @@ def load_render(renders_dir: Path, mesh_id: str) -> tuple[np.ndarray, np.ndarray
     if image is None or mask is None or not camera_path.is_file():
         raise InputError(f"render of {mesh_id} missing in {renders_dir} (need .png, _mask.png and .json)")
     return image[..., ::-1].copy(), mask > 127, json.loads(camera_path.read_text())
+
+
+def every_nth(items: list, every: int = 1, offset: int = 0) -> list:
+    """Every ``every``-th of ``items`` from ``offset``: the halves (or thirds) a benchmark tunes
+    on and reports on (``--every`` and ``--offset``)."""
+    if every < 1 or not 0 <= offset < every:
+        raise ConfigError("--every must be at least 1 and --offset in 0 .. every-1")
+    return items[offset::every]
 
 
 def load_mesh(path: Path) -> trimesh.Trimesh:

@@ -139,3 +139,43 @@ def test_the_command_has_help_and_names_a_missing_input_in_one_line(tmp_path, ca
     assert main(argv) != 0
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("frontal3d: error: no *.glb meshes"), err
+
+
+def _renders_folder(folder, count: int):
+    """``count`` drawn guitars, each a little wider than the last, as the shared renders' layout."""
+    paths = []
+    for number in range(count):
+        image, mask = _guitar()
+        mask = cv2.dilate(mask.astype(np.uint8), np.ones((2 * number + 1,) * 2, np.uint8)) > 0
+        image[mask] = (40, 70, 150)
+        cv2.imwrite(str(folder / f"g{number}.png"), image[..., ::-1])
+        cv2.imwrite(str(folder / f"g{number}_mask.png"), mask.astype(np.uint8) * 255)
+        (folder / f"g{number}.json").write_text("{}")
+        paths.append(folder / f"g{number}.glb")
+    return paths
+
+
+def test_a_slice_meets_the_composites_the_whole_run_gives_its_meshes(tmp_path):
+    from frontal3d.eval_occlusion import selected_composites
+
+    paths = _renders_folder(tmp_path, 4)
+
+    def occluders(every: int, offset: int) -> dict[tuple[str, int], np.ndarray]:
+        return {(path.stem, index): composite.occluder
+                for path, _image, _mask, index, composite in selected_composites("arms", paths, tmp_path, 2, 7, every, offset)}
+
+    whole, odd, even = occluders(1, 0), occluders(2, 1), occluders(2, 0)
+    assert set(odd) == {("g1", 0), ("g1", 1), ("g3", 0), ("g3", 1)}
+    assert set(odd) | set(even) == set(whole) and not set(odd) & set(even)
+    for key, occluder in {**odd, **even}.items():
+        assert np.array_equal(occluder, whole[key]), key
+    assert not np.array_equal(whole[("g1", 0)], whole[("g3", 0)])
+
+
+def test_a_slice_out_of_range_is_a_one_line_error(tmp_path):
+    from frontal3d.errors import ConfigError
+    from frontal3d.eval_occlusion import selected_composites
+
+    paths = _renders_folder(tmp_path, 2)
+    with pytest.raises(ConfigError, match="--offset in 0 .. every-1"):
+        next(selected_composites("arms", paths, tmp_path, 1, 0, every=2, offset=2))
