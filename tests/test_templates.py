@@ -107,7 +107,8 @@ def test_landmarks_named_and_inside_the_solid(family: str, subtype: str) -> None
     scene = o3d.t.geometry.RaycastingScene()
     mesh = built.mesh
     scene.add_triangles(o3d.core.Tensor(np.asarray(mesh.vertices, np.float32)), o3d.core.Tensor(np.asarray(mesh.faces, np.uint32)))
-    signed = scene.compute_signed_distance(o3d.core.Tensor(points.astype(np.float32))).numpy()
+    # Five rays vote on inside/outside: one ray that grazes an edge flips the sign on some CPUs.
+    signed = scene.compute_signed_distance(o3d.core.Tensor(points.astype(np.float32)), nsamples=5).numpy()
     assert (signed < 1e-4 * mesh.extents.max()).all(), dict(zip(built.landmarks, signed))
 
 
