@@ -388,3 +388,89 @@ def test_a_learned_probability_that_saw_only_part_of_the_object_does_not_cut_the
     found = grabcut_segment(image, object_probability=_network_like_probability(seen))
     assert found is not None
     assert _iou(found, truth) > 0.9
+
+
+def _labels_for(found: np.ndarray) -> np.ndarray:
+    """GrabCut labels of a foreground it settled on: probable object on ``found``, probable background elsewhere."""
+    return np.where(found, cv2.GC_PR_FGD, cv2.GC_PR_BGD).astype(np.uint8)
+
+
+def _brown_body_by_red(red_beyond: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A brown body with a red piece on its right that GrabCut took as object: (image, body, red piece,
+    network p). With ``red_beyond`` the red goes on as a large blob behind the body (a blob the
+    network's blur lent p 0.8 next to the body); without, the red piece is all the red there is."""
+    shape = (240, 320)
+    body = np.zeros(shape, np.uint8)
+    cv2.ellipse(body, (150, 130), (60, 80), 0, 0, 360, 1, -1)
+    body = body > 0
+    piece = np.zeros(shape, bool)
+    piece[90:170, 205:222] = True
+    red = piece.copy()
+    if red_beyond:
+        blob = np.zeros(shape, np.uint8)
+        cv2.circle(blob, (215, 130), 90, 1, -1)
+        red |= (blob > 0) & ~body
+    background = np.full(shape + (3,), (190.0, 200, 205))
+    background[red] = (215, 45, 35)
+    image = _composite(background, body, (120, 75, 45), np.random.default_rng(3))
+    image[piece] = np.clip(np.array([215, 45, 35]) + np.random.default_rng(4).normal(0, 6, (piece.sum(), 3)), 0, 255)
+    probability = np.where(body, 0.97, np.where(piece, 0.8, 0.05)).astype(np.float32)
+    return image, body, piece, probability
+
+
+@pytest.mark.parametrize("red_beyond", [True, False])
+def test_a_colour_the_background_shows_more_of_leaves_the_foreground(red_beyond):
+    from frontal3d.stages.segment import _cut_background_colours, _foreground
+
+    image, body, piece, probability = _brown_body_by_red(red_beyond)
+    labels = _labels_for(body | piece)
+    lab = cv2.GaussianBlur(cv2.cvtColor(image, cv2.COLOR_RGB2LAB).astype(np.float32), (0, 0), 1.5)
+    _cut_background_colours(labels, probability, lab, image)
+    found = _foreground(labels)
+    assert _iou(found & body, body) > 0.97  # the body's own colour stays
+    if red_beyond:
+        assert (found & piece).sum() < 0.05 * piece.sum()  # the red the background is full of goes
+    else:
+        assert (found & piece).sum() > 0.9 * piece.sum()  # a red part of the object stays
+
+
+def test_long_thin_gaps_the_network_vouches_for_join_the_foreground_and_corners_do_not():
+    from frontal3d.stages.segment import _fill_vouched_strips, _foreground
+
+    shape = (400, 400)
+    truth = _airplane_mask(shape)
+    strip = np.zeros(shape, bool)
+    strip[110:290, 192:196] = True  # a fuselage's shaded side GrabCut gave to the background
+    strip &= truth
+    speck = np.zeros(shape, bool)
+    speck[150:156, 215:221] = True  # clutter beside the fuselage, 2 px from it
+    image = _composite(np.full(shape + (3,), (90.0, 120, 160)), truth, (225, 225, 228), np.random.default_rng(5))
+    image[strip] = (150, 150, 155)  # darker than the lit fuselage, nothing like the sky
+    lab = cv2.GaussianBlur(cv2.cvtColor(image, cv2.COLOR_RGB2LAB).astype(np.float32), (0, 0), 1.5)
+    probability = _network_like_probability(truth)
+    corner = (probability > 0.5) & ~truth & ~speck  # the network's blur past concave corners
+    labels = _labels_for((truth & ~strip) | speck)
+    _fill_vouched_strips(labels, probability, lab)
+    found = _foreground(labels)
+    assert (found & strip).sum() > 0.95 * strip.sum()
+    assert not (found & corner).any()
+    assert not (found & ~truth & ~speck).any()  # nothing bridges the gap to the speck
+
+
+def test_a_thin_gap_showing_the_background_stays_a_gap():
+    # The slit between a pick-up's cab and its bed over a plain wall: thin, long and vouched for
+    # by the network's blur like a shaded strip, but its colour is the wall's.
+    from frontal3d.stages.segment import _fill_vouched_strips, _foreground
+
+    shape = (300, 400)
+    truth = np.zeros(shape, bool)
+    truth[100:200, 60:340] = True
+    slit = np.zeros(shape, bool)
+    slit[100:170, 200:203] = True
+    truth &= ~slit
+    image = _composite(np.full(shape + (3,), (110.0, 115, 140)), truth, (30, 60, 170), np.random.default_rng(6))
+    lab = cv2.GaussianBlur(cv2.cvtColor(image, cv2.COLOR_RGB2LAB).astype(np.float32), (0, 0), 1.5)
+    probability = _network_like_probability(truth)
+    labels = _labels_for(truth)
+    _fill_vouched_strips(labels, probability, lab)
+    assert (probability[slit] > 0.5).mean() > 0.8 and not (_foreground(labels) & slit).any()
