@@ -382,6 +382,11 @@ def _cut_doubted_colours(labels: np.ndarray, probability: np.ndarray, colours: n
     never tests it, and the network's blurred edge lends it p > 0.5 near the object: judged per
     pixel, its colour looks like the object's. Judged per colour of the whole foreground, most of
     its pixels have low p, while the object's colours are believed on most of theirs.
+
+    Hue is measured from the believed colours the network is also sure of (:func:`_own_colours`)
+    when there are any: the blend of object and background along the object's edge is believed
+    too (p 0.55 where a glider's wing meets grass), and it lay within 20 of the grass, so a faint
+    shape of grass colour over half the image was kept.
     """
     found = _foreground(labels)
     clusters = _foreground_colours(found, colours)
@@ -395,7 +400,8 @@ def _cut_doubted_colours(labels: np.ndarray, probability: np.ndarray, colours: n
     believed = (belief >= min(0.5, max(BELIEVED_FLOOR, BELIEVED_SHARE * belief.max()))) & (counts > 0)
     if not believed.any():
         return
-    doubted = (belief < DOUBTED_COLOUR_P) & (_hue_apart(centres, believed) > DOUBTED_CHROMA)
+    own = believed & _own_colours(nearest, probability[found], len(centres))
+    doubted = (belief < DOUBTED_COLOUR_P) & (_hue_apart(centres, own if own.any() else believed) > DOUBTED_CHROMA)
     cut = np.zeros_like(found)
     cut[found] = doubted[nearest] & (probability[found] < DOUBTED_PIXEL_P)
     cut = cv2.morphologyEx(cut.astype(np.uint8), cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7))) > 0
@@ -419,8 +425,7 @@ def _cut_background_colours(labels: np.ndarray, probability: np.ndarray, colours
         return
     centres, nearest, distance = clusters
     inside = np.bincount(nearest[found], minlength=len(centres))
-    sure = np.bincount(nearest[found], weights=probability[found] > CORE_P, minlength=len(centres)) / np.maximum(inside, 1)
-    own = (sure >= CORE_SHARE) & (inside > 0)
+    own = _own_colours(nearest[found], probability[found], len(centres))
     if not own.any():
         return
     background = ~found & (probability < DOUBTED_PIXEL_P) & (distance < COLOUR_MATCH)
@@ -474,6 +479,14 @@ def _foreground_colours(found: np.ndarray, colours: np.ndarray) -> tuple[np.ndar
     centres = _colour_clusters(samples, FOREGROUND_COLOURS)
     distance = np.sqrt(((colours.reshape(-1, 1, 3) - centres[None]) ** 2).sum(axis=2))
     return centres, distance.argmin(axis=1).reshape(found.shape), distance.min(axis=1).reshape(found.shape)
+
+
+def _own_colours(nearest: np.ndarray, probability: np.ndarray, count: int) -> np.ndarray:
+    """Which of ``count`` colours (``nearest``: each foreground pixel's) the network is sure are
+    its object's: at least :data:`CORE_SHARE` of their pixels at p above :data:`CORE_P`."""
+    pixels = np.bincount(nearest, minlength=count)
+    sure = np.bincount(nearest, weights=probability > CORE_P, minlength=count)
+    return (pixels > 0) & (sure >= CORE_SHARE * pixels)
 
 
 def _hue_apart(centres: np.ndarray, chosen: np.ndarray) -> np.ndarray:
