@@ -87,7 +87,8 @@ REACH_ROUNDS = 3
 #: colours (k-means, Lab); a colour the network believes has mean p(object) >= 0.5 over its pixels
 #: (or, when no colour reaches 0.5, at least :data:`BELIEVED_SHARE` of the best colour's mean and
 #: :data:`BELIEVED_FLOOR`), one it doubts has a mean below :data:`DOUBTED_COLOUR_P` and a hue (a, b)
-#: more than :data:`DOUBTED_CHROMA` from every believed one. Its pixels at p < :data:`DOUBTED_PIXEL_P`
+#: more than :data:`DOUBTED_CHROMA` from every believed one the network is sure of (:func:`_own_colours`;
+#: every believed one when it is sure of none). Its pixels at p < :data:`DOUBTED_PIXEL_P`
 #: (opened 7 px, so no edge blend) become sure background. Chosen on the odd-indexed renders.
 FOREGROUND_COLOURS = 8
 DOUBTED_COLOUR_P = 0.45
@@ -455,7 +456,7 @@ def _fill_vouched_strips(labels: np.ndarray, probability: np.ndarray, colours: n
     kept = np.logical_or.reduce(objects)
     closed = cv2.morphologyEx(kept.astype(np.uint8), cv2.MORPH_CLOSE, _disc(max(1, round(STRIP_GAP * max(found.shape))))) > 0
     gaps = closed & ~found & (probability > STRIP_P) & ~_dilated(found & ~kept, 1)
-    count, pieces, stats, _ = cv2.connectedComponentsWithStats(gaps.astype(np.uint8), connectivity=8)
+    _, pieces, stats, _ = cv2.connectedComponentsWithStats(gaps.astype(np.uint8), connectivity=8)
     length = np.maximum(stats[:, cv2.CC_STAT_WIDTH], stats[:, cv2.CC_STAT_HEIGHT])
     width = stats[:, cv2.CC_STAT_AREA] / np.maximum(length, 1)
     strips = 1 + np.flatnonzero(STRIP_ELONGATION * width[1:] <= length[1:])
