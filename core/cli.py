@@ -178,6 +178,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--resolution", type=int, default=256, help="side of the square images (default: 256)")
     p.add_argument("--grain", type=float, default=0.0, help="share of backgrounds (0-1) that also get fine grain, as paper or fabric shows (default: 0)")
+    p.add_argument("--clutter", type=float, default=0.0, help="share of samples (0-1) with blobs behind the object touching its outline, half in its own colours (default: 0)")
     p.set_defaults(run=_cmd_synth)
 
     p = sub.add_parser("train", help="train a learned model (frontal gate, subtype, object segmenter, regions) on `synth` data", description="Train on a `frontal3d synth` folder (CPU), print the held-out score after each epoch and write a checkpoint. frontal, subtype: a small CNN on the masked object crop (held-out accuracy). segmenter: a small U-Net from the whole photo to the object's mask; regions: the same network from the object crop to the family's regions (held-out IoU). Use a checkpoint with the family setting weights = {TASK = \"CKPT\"}.")
@@ -186,6 +187,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--out", type=Path, required=True, help="checkpoint to write (.pt)")
     p.add_argument("--epochs", type=int, default=8)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--size", type=int, default=None, help="side of the square the segmenter or region network sees, a multiple of 8 (default: 96; the checkpoint keeps it)")
     p.set_defaults(run=_cmd_train)
     return parser
 
@@ -420,26 +422,29 @@ def _cmd_synth(args: argparse.Namespace) -> int:
     from frontal3d.progress import counter
     from frontal3d.synth import synthesize
 
-    if args.count < 1 or args.resolution < 32 or not 0 <= args.grain <= 1:
-        raise ConfigError("synth needs -n >= 1, --resolution >= 32 and --grain between 0 and 1")
+    if args.count < 1 or args.resolution < 32 or not 0 <= args.grain <= 1 or not 0 <= args.clutter <= 1:
+        raise ConfigError("synth needs -n >= 1, --resolution >= 32 and --grain and --clutter between 0 and 1")
     plugins = _plugins(args)
     family = plugins.family(args.family)
     settings = plugins.settings(family.name)
     templates = {s: plugins.hook.frontal3d_template(family=family, subtype=s, settings=settings) for s in family.subtypes}
     with counter(args.count, "image") as bar:
-        labels = synthesize(family, templates, args.count, args.out, seed=args.seed, resolution=args.resolution, progress=bar.update, grain=args.grain)
+        labels = synthesize(family, templates, args.count, args.out, seed=args.seed, resolution=args.resolution, progress=bar.update, grain=args.grain, clutter=args.clutter)
     print(f"wrote {args.count} samples of {family.name} ({', '.join(templates)}) to {args.out}; labels in {labels}")
     return 0
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
     from frontal3d.learned import DENSE_TASKS
+    from frontal3d.learned_dense import DENSE_INPUT_SIZE
     from frontal3d.train import load_dataset, load_dense_dataset, train
 
     if args.epochs < 1:
         raise ConfigError("--epochs must be at least 1")
+    if args.size is not None and (args.task not in DENSE_TASKS or args.size < 32 or args.size % 8):
+        raise ConfigError("--size is for the segmenter and regions tasks: a multiple of 8, at least 32")
     if args.task in DENSE_TASKS:
-        dataset = load_dense_dataset(args.data, args.task, _plugins(args).family)
+        dataset = load_dense_dataset(args.data, args.task, _plugins(args).family, size=args.size or DENSE_INPUT_SIZE)
         what = "object segmenter" if args.task == "segmenter" else "region model"
     else:
         dataset = load_dataset(args.data, args.task)

@@ -5,7 +5,8 @@ we render the 3D models: each sample is a template with its shape perturbed (ani
 scale, mild bend), turned (within the frontal range for positives, 30-90 degrees away
 for the frontal gate's negatives, plus an in-plane turn), painted per region with random
 colours and procedural textures, lit from a random direction and composited over a
-procedural background. One sample depends only on ``(seed, index)``, so a data set is
+procedural background (on request with fine grain, or with blobs behind the object touching
+its outline: the segmenter's hard cases). One sample depends only on ``(seed, index)``, so a data set is
 reproducible and can be grown without changing its first samples.
 """
 
@@ -40,6 +41,11 @@ NEGATIVE_FRACTION = 0.5
 #: takes grain for an object's texture).
 GRAIN_CELLS = (32, 160)
 GRAIN_AMPLITUDE = (0.05, 0.3)
+#: Clutter behind the object (``clutter`` share of the samples): how many opaque soft blobs
+#: touch its outline, and the chance that a blob takes one of the object's own colours (a
+#: segmenter that only saw clutter away from the object joins a blob behind it to it).
+CLUTTER_BLOBS = (2, 5)
+CLUTTER_OWN_COLOUR = 0.5
 #: Regions usually dark in photos (tyres, sound holes): painted dark most of the time.
 DARK_REGIONS = ("hole", "wheels")
 LABEL_COLUMNS = ("file", "family", "subtype", "frontal", "yaw", "pitch")
@@ -59,12 +65,14 @@ class Sample:
 
 
 def synthesize(family: Family, templates: dict[str, Template], count: int, out_dir: Path, seed: int = 0,
-               resolution: int = 256, progress: Callable[[int], None] | None = None, grain: float = 0.0) -> Path:
+               resolution: int = 256, progress: Callable[[int], None] | None = None, grain: float = 0.0,
+               clutter: float = 0.0) -> Path:
     """Write ``count`` samples as images/, masks/, regions/ PNGs and labels.csv; returns the csv path.
 
     Subtypes take turns so every class is equally represented; region PNGs hold the
     region index + 1 (0 = background). ``grain``: the share of backgrounds that also get
-    fine grain (0, the default, draws nothing more: older data sets stay identical).
+    fine grain; ``clutter``: the share that get blobs touching the object (both 0 by
+    default, which draws nothing more: older data sets stay identical).
     """
     for folder in ("images", "masks", "regions"):
         (out_dir / folder).mkdir(parents=True, exist_ok=True)
@@ -72,7 +80,7 @@ def synthesize(family: Family, templates: dict[str, Template], count: int, out_d
     rows = []
     for index in range(count):
         subtype = subtypes[index % len(subtypes)]
-        sample = render_sample(templates[subtype], np.random.default_rng([seed, index]), resolution, grain)
+        sample = render_sample(templates[subtype], np.random.default_rng([seed, index]), resolution, grain, clutter)
         name = f"{index:06d}.png"
         cv2.imwrite(str(out_dir / "images" / name), cv2.cvtColor(sample.image, cv2.COLOR_RGB2BGR))
         cv2.imwrite(str(out_dir / "masks" / name), sample.mask.astype(np.uint8) * 255)
@@ -88,7 +96,7 @@ def synthesize(family: Family, templates: dict[str, Template], count: int, out_d
     return labels
 
 
-def render_sample(template: Template, rng: np.random.Generator, resolution: int, grain: float = 0.0) -> Sample:
+def render_sample(template: Template, rng: np.random.Generator, resolution: int, grain: float = 0.0, clutter: float = 0.0) -> Sample:
     """One randomized photo of ``template`` (see the module docstring for what varies)."""
     frontal = bool(rng.random() >= NEGATIVE_FRACTION)
     yaw, pitch = _view_angles(rng, frontal)
@@ -107,6 +115,8 @@ def render_sample(template: Template, rng: np.random.Generator, resolution: int,
     shade = rng.uniform(0.1, 0.3) + rng.uniform(0.6, 0.9) * np.clip(normals @ light, 0.0, 1.0)
     rgb = np.clip(albedo * shade[..., None], 0, 255)
     background = _background(resolution, rng, grain)
+    if clutter > 0 and rng.random() < clutter:
+        background = _touching_blobs(background, mask, rgb, rng)
     image = np.where(mask[..., None], rgb, background).astype(np.uint8)
     return Sample(image=image, mask=mask, regions=regions.astype(np.int32), subtype=template.subtype, frontal=frontal, yaw=yaw, pitch=pitch)
 
@@ -243,6 +253,32 @@ def soft_blobs(background: np.ndarray, rng: np.random.Generator, count: int, opa
         blobs[spot > 0] = random_colour(rng, rng.random() < 0.3)
         weight = np.maximum(weight, spot)
     weight = opacity * cv2.GaussianBlur(weight, (0, 0), max(1.0, resolution / 100))[..., None]
+    return np.clip(background * (1 - weight) + blobs * weight, 0, 255)
+
+
+def _touching_blobs(background: np.ndarray, mask: np.ndarray, rgb: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """``background`` with opaque soft blobs centred near the object's outline, so they pass behind it,
+    half of them in one of the object's own colours (the mask benchmark's hard case: a blob
+    joining the object in the photo)."""
+    resolution = background.shape[0]
+    outline = np.argwhere(mask & ~cv2.erode(mask.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool))
+    if len(outline) == 0:
+        return background
+    blobs = np.zeros_like(background, dtype=np.float32)
+    weight = np.zeros((resolution, resolution), np.float32)
+    for _ in range(int(rng.integers(*CLUTTER_BLOBS))):
+        row, col = outline[rng.integers(len(outline))]
+        axes = tuple(int(v) for v in rng.integers(resolution // 20, resolution // 5, size=2))
+        spot = np.zeros((resolution, resolution), np.float32)
+        cv2.ellipse(spot, (int(col), int(row)), axes, float(rng.uniform(0, 180)), 0, 360, 1.0, -1)
+        if rng.random() < CLUTTER_OWN_COLOUR:
+            own = rgb[mask][rng.integers(int(mask.sum()))]
+            colour = np.clip(own * rng.uniform(0.85, 1.15), 0, 255)
+        else:
+            colour = random_colour(rng, rng.random() < 0.3)
+        blobs[spot > 0] = colour
+        weight = np.maximum(weight, spot)
+    weight = cv2.GaussianBlur(weight, (0, 0), max(1.0, resolution / 100))[..., None]
     return np.clip(background * (1 - weight) + blobs * weight, 0, 255)
 
 

@@ -89,6 +89,22 @@ def test_synth_grain_adds_fine_texture_to_backgrounds_and_nothing_else(tmp_path)
         assert fine(grained) > fine(image)
 
 
+def test_synth_clutter_puts_blobs_behind_the_object_and_leaves_it_untouched(tmp_path):
+    plain, cluttered = tmp_path / "plain", tmp_path / "cluttered"
+    _synth(plain, 8, resolution=128)
+    assert main(["synth", "--family", "car", "-n", "8", "-o", str(cluttered), "--seed", "5", "--resolution", "128", "--clutter", "1"]) == 0
+    assert main(["synth", "--family", "car", "-n", "1", "-o", str(tmp_path / "bad"), "--clutter", "-0.1"]) == 2
+    ring_changed = []
+    for index in range(8):
+        (image, mask), (busy, same_mask) = _sample(plain, index), _sample(cluttered, index)
+        np.testing.assert_array_equal(mask, same_mask)
+        np.testing.assert_array_equal(image[mask], busy[mask])  # the object is untouched
+        ring = cv2.dilate(mask.astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool) & ~mask
+        changed = np.abs(image.astype(int) - busy.astype(int)).max(axis=2) > 10
+        ring_changed.append(changed[ring].mean())
+    assert min(ring_changed) > 0.1  # every sample has clutter touching its outline
+
+
 def test_trained_checkpoint_loads_and_reproduces_its_stored_prediction(trained):
     stored = torch.load(trained["subtype"], weights_only=True)
     model = load_classifier(trained["subtype"], "subtype", Plugins().family("car"))

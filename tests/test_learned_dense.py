@@ -26,6 +26,8 @@ from frontal3d.synth import render_sample
 SHIPPED = Path(__file__).resolve().parents[1] / "families" / "car" / "weights" / "segmenter.pt"
 EXAMPLE_JPG = Path(__file__).resolve().parents[1] / "examples" / "sportscar.jpg"
 EXAMPLE_PNG = EXAMPLE_JPG.with_suffix(".png")
+AIRPLANE_SHIPPED = SHIPPED.parents[2] / "airplane" / "weights" / "segmenter.pt"
+PLANE_PNG = EXAMPLE_JPG.with_name("private_plane.png")
 
 
 @pytest.fixture(scope="module")
@@ -70,6 +72,17 @@ def test_cli_trains_a_segmenter_printing_held_out_iou(trained, capsys, tmp_path)
     with pytest.raises(SystemExit) as done:
         main(["train", "--help"])
     assert done.value.code == 0 and "segmenter" in capsys.readouterr().out
+
+
+def test_a_segmenter_trained_at_another_size_keeps_it_and_answers_at_the_photos_size(trained, car, tmp_path):
+    _, family = car
+    out = tmp_path / "small.pt"
+    assert main(["train", "segmenter", "--data", str(trained["data"]), "-o", str(out), "--epochs", "1", "--size", "64"]) == 0
+    model = load_dense(out, "segmenter", family)
+    assert model.input_size == 64
+    assert model.object_probability(np.zeros((90, 120, 3), np.uint8)).shape == (90, 120)
+    assert main(["train", "segmenter", "--data", str(trained["data"]), "-o", str(tmp_path / "x.pt"), "--size", "60"]) == 2
+    assert main(["train", "frontal", "--data", str(trained["data"]), "-o", str(tmp_path / "y.pt"), "--size", "64"]) == 2
 
 
 def test_checkpoints_load_and_replay_their_stored_reference(trained, car):
@@ -186,6 +199,21 @@ def test_shipped_car_segmenter_cuts_a_dark_blob_grabcut_grew_into_behind_the_car
     found = model.object_mask(composite_photo(rgba, "blobs", np.random.default_rng(0)))
     assert _iou(found, truth) > 0.88
     assert np.count_nonzero(found & ~truth) < 6500
+
+
+@pytest.mark.skipif(not AIRPLANE_SHIPPED.is_file(), reason="no shipped airplane segmenter")
+def test_shipped_airplane_segmenter_keeps_a_dark_blob_under_the_wing_tip_out():
+    # The example plane over the mask benchmark's blob background (seed 8): a dark green blob
+    # runs under the left wing tip. The segmenter trained without clutter behind its samples
+    # took 5,566 pixels of it into the plane; the one trained with `synth --clutter 0.5`
+    # (blobs touching the outline, half in the object's own colours) takes 1,454.
+    family = Plugins().family("airplane")
+    model = load_dense(AIRPLANE_SHIPPED, "segmenter", family)
+    rgba = cv2.cvtColor(cv2.imread(str(PLANE_PNG), cv2.IMREAD_UNCHANGED), cv2.COLOR_BGRA2RGBA)
+    truth = rgba[..., 3] > 127
+    found = model.object_mask(composite_photo(rgba, "blobs", np.random.default_rng(8)))
+    assert _iou(found, truth) > 0.93
+    assert np.count_nonzero(found & ~truth) < 3000
 
 
 def _iou(found: np.ndarray | None, truth: np.ndarray) -> float:
