@@ -49,7 +49,7 @@ SAME_COLOUR = 6
 DIFFERENT_COLOUR = 30
 PEOPLE_MODES = ("guitarist", "whole person")
 COMPOSITE_FIELDS = ("id", "composite", "occluder", "mode", "occluded_share", "rejected", "detected_fraction",
-                    "occluder_pixels_left", *METRIC_KEYS, *(f"{k}_clean" for k in METRIC_KEYS), *(f"{k}_change" for k in METRIC_KEYS),
+                    "occluder_pixels_left", "occluder_pixels_shown", *METRIC_KEYS, *(f"{k}_clean" for k in METRIC_KEYS), *(f"{k}_change" for k in METRIC_KEYS),
                     *(f"{k}_true_mask" for k in METRIC_KEYS), "error")
 
 
@@ -226,7 +226,7 @@ def _px(point: np.ndarray) -> tuple[int, int]:
 
 
 def occluder_pixels_left(atlas: np.ndarray, composite: np.ndarray, clean: np.ndarray, occluder: np.ndarray, object_mask: np.ndarray,
-                         synthesized: np.ndarray | None = None) -> int:
+                         synthesized: np.ndarray | None = None, on_model: np.ndarray | None = None) -> int:
     """Texture pixels inside the object that are still the occluder's own pixels.
 
     The atlas's front half is the photo's crop (inpainted under the found occluders); it is
@@ -240,6 +240,9 @@ def occluder_pixels_left(atlas: np.ndarray, composite: np.ndarray, clean: np.nda
     counts only when no visible pixel of the object has its colour either (to SAME_COLOUR),
     since a dark wood the inpainting copied may match a dark skin tone by chance, while
     skin smeared in from outside the object matches nothing the object shows.
+    With ``on_model`` (``TexturedMesh.front_shown``) only the texels inside the reconstructed
+    silhouette count, the ones the model shows: the rest pad its rim with the nearest
+    silhouette colour, which next to an outline left unrebuilt may be a blend with the occluder.
     """
     front = np.ascontiguousarray(atlas[:, : atlas.shape[1] // 2, :3])
     if front.shape[0] > composite.shape[0] or front.shape[1] > composite.shape[1]:
@@ -254,6 +257,8 @@ def occluder_pixels_left(atlas: np.ndarray, composite: np.ndarray, clean: np.nda
     same = np.abs(front.astype(int) - shown).max(axis=2) <= SAME_COLOUR
     unlike = np.abs(shown - clean[window][..., :3].astype(int)).max(axis=2) > DIFFERENT_COLOUR
     left = same & unlike & occluder[window] & object_mask[window]
+    if on_model is not None:
+        left &= on_model
     if known is not None:
         made_up = left & synthesized
         seen_colours = composite[object_mask & ~occluder][..., :3].astype(int)
@@ -351,8 +356,9 @@ def _composite_row(plugins, family, mesh_id, index, composite: Composite, image,
         result = _reconstruct(plugins, family, composite.image, composite.visible, given, settings)
         row.update(_scores(result, gt, clean))
         row["detected_fraction"] = result.report.get("occlusion", {}).get("occluded_fraction", 0.0)
-        row["occluder_pixels_left"] = occluder_pixels_left(result.textured.atlas, composite.image, image, composite.occluder, mask,
-                                                           result.textured.front_synthesized)
+        texels = (result.textured.atlas, composite.image, image, composite.occluder, mask, result.textured.front_synthesized)
+        row["occluder_pixels_left"] = occluder_pixels_left(*texels)
+        row["occluder_pixels_shown"] = occluder_pixels_left(*texels, on_model=result.textured.front_shown)
     except NotFrontalError as exc:
         row["rejected"] = str(exc).splitlines()[0]
     except Frontal3DError as exc:
@@ -387,7 +393,8 @@ def summarize(rows: list[dict]) -> list[dict]:
         line: dict[str, Any] = {"group": group, "n": len(members), "scored": len(scored),
                                 "rejected": sum(bool(r["rejected"]) for r in members),
                                 "occluded_share_mean": _mean([r["occluded_share"] for r in members]),
-                                "occluder_pixels_left": sum(r.get("occluder_pixels_left", 0) for r in scored)}
+                                "occluder_pixels_left": sum(r.get("occluder_pixels_left", 0) for r in scored),
+                                "occluder_pixels_shown": sum(r.get("occluder_pixels_shown", 0) for r in scored)}
         for key in METRIC_KEYS:
             line[f"{key}_change"] = _mean([r[key] for r in scored]) / _mean([r[f"{key}_clean"] for r in scored]) - 1.0 if scored else float("nan")
         referenced = [r for r in scored if "iou_true_mask" in r]
@@ -404,7 +411,8 @@ def summary_lines(summary: list[dict]) -> list[str]:
     for line in summary:
         changes = " / ".join(f"{100 * line[f'{k}_change']:+.1f}" for k in METRIC_KEYS)
         text = (f"{line['group']:<14} n={line['n']:<3} scored={line['scored']:<3} rejected={line['rejected']:<3} "
-                f"share={100 * line['occluded_share_mean']:.0f}%  change IoU/CD/F: {changes} %  occluder pixels left: {line['occluder_pixels_left']}")
+                f"share={100 * line['occluded_share_mean']:.0f}%  change IoU/CD/F: {changes} %  occluder pixels left: {line['occluder_pixels_left']} "
+                f"(on the model: {line['occluder_pixels_shown']})")
         if line["true_mask_scored"]:
             text += "  true mask: " + " / ".join(f"{100 * line[f'{k}_change_true_mask']:+.1f}" for k in METRIC_KEYS) + f" % (n={line['true_mask_scored']})"
         lines.append(text)

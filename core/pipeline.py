@@ -385,7 +385,9 @@ def _reconstruct_shape_and_texture(
         full_mask = cv2.resize(work_mask.astype(np.uint8), (crop.width, crop.height), interpolation=cv2.INTER_NEAREST) > 0
         full_regions = cv2.resize(regions.astype(np.int16), (crop.width, crop.height), interpolation=cv2.INTER_NEAREST).astype(np.int32)
         full_occluded = cv2.resize(occluded.astype(np.uint8), (crop.width, crop.height), interpolation=cv2.INTER_NEAREST) > 0
-        if full_occluded.any():
+        if full_occluded.any() or people_near.any():
+            # Next to people judged behind, the working grid's coarse outline still takes in
+            # slivers of them: like rebuilt pixels, those are inpainted, not taken from the photo.
             window = np.s_[crop.y0 : crop.y0 + crop.height, crop.x0 : crop.x0 + crop.width]
             full_occluders = None if occluders is None else occluders[window]
             full_occluded = occlusion.occluded_at_full_resolution(full_occluded, full_mask, object_mask[window], full_occluders)

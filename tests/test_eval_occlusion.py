@@ -77,6 +77,23 @@ def test_occluder_pixels_left_counts_the_occluders_own_pixels_in_the_texture():
     assert occluder_pixels_left(np.concatenate([inpainted, inpainted], axis=1), composite.image, image, composite.occluder, guitar) == 0
 
 
+def test_only_texels_the_model_shows_count_when_told_which():
+    """An outline left unrebuilt under an arm: the texels there lie beyond the silhouette and
+    only pad its rim, so the count on the model leaves them out; the atlas count keeps them."""
+    image, guitar = _guitar()
+    composite = arm_occluder(image, guitar, np.random.default_rng(1))
+    rows, cols = np.nonzero(guitar)
+    window = np.s_[rows.min() - 5 : rows.max() + 6, cols.min() - 5 : cols.max() + 6]
+    atlas = np.concatenate([composite.image[window], composite.image[window]], axis=1)
+    hidden_in_object = int((composite.occluder & guitar).sum())
+    notch = composite.occluder[window] & guitar[window]
+    half_shown = notch & (np.arange(notch.shape[1]) % 2 == 0)  # every other column on the model
+    assert hidden_in_object > 100
+    assert occluder_pixels_left(atlas, composite.image, image, composite.occluder, guitar, on_model=~notch) == 0
+    assert occluder_pixels_left(atlas, composite.image, image, composite.occluder, guitar, on_model=~notch | half_shown) == half_shown.sum()
+    assert occluder_pixels_left(atlas, composite.image, image, composite.occluder, guitar) == hidden_in_object
+
+
 def test_the_texture_is_located_by_its_texels_taken_from_the_photo():
     """Bled beyond the silhouette, the atlas's margin holds the object's colours where the
     photo shows background: matched on every texel, the front lands off the object."""

@@ -40,6 +40,10 @@ MIN_COLOUR_REFERENCE = 50
 #: fraction of the template's size across: a person behind the object, next to a template
 #: wider than the object, claims only a band along the object's outline.
 IN_FRONT_DEPTH = 0.04
+#: Each piece of what people hide must also cover at least this share of the template's
+#: size squared (a tenth of a guitar's area): a template placed a little wider or off to
+#: one side of the object, with a person behind, still claims a short thick piece by a horn.
+IN_FRONT_MIN_AREA = 0.023
 
 
 @dataclass
@@ -144,8 +148,8 @@ def in_front(people: np.ndarray, object_mask: np.ndarray, aligned_template_mask:
     alignment's error), so it is left out and the outline it borders stays the one seen;
     so is a body behind an object slimmer than the template (a bass against an electric
     template), seen only in a band along the outline: what stands in front must hide a
-    stretch at least twice IN_FRONT_DEPTH across. People's pixels on the object (a held
-    guitar the segmenter counts as the person) stay object.
+    stretch at least twice IN_FRONT_DEPTH across, in pieces of at least IN_FRONT_MIN_AREA.
+    People's pixels on the object (a held guitar the segmenter counts as the person) stay object.
     """
     people = np.asarray(people, dtype=bool)
     off_object = ~np.asarray(object_mask, dtype=bool)
@@ -167,7 +171,10 @@ def in_front(people: np.ndarray, object_mask: np.ndarray, aligned_template_mask:
     claimed = (people | inside) & off_object & (cv2.dilate(inside.astype(np.uint8), _disc(2 * radius)) > 0)
     depth = _disc(max(1, round(IN_FRONT_DEPTH * size)))
     deep = cv2.morphologyEx(claimed.astype(np.uint8), cv2.MORPH_OPEN, depth)
-    return claimed & (cv2.dilate(deep, depth) > 0)
+    kept = claimed & (cv2.dilate(deep, depth) > 0)
+    count, kept_pieces, stats, _centroids = cv2.connectedComponentsWithStats(kept.astype(np.uint8), connectivity=8)
+    large = 1 + np.flatnonzero(stats[1:count, cv2.CC_STAT_AREA] >= IN_FRONT_MIN_AREA * size * size)
+    return np.isin(kept_pieces, large)
 
 
 @dataclass

@@ -39,7 +39,9 @@ class TexturedMesh:
     ``atlas`` (h, 2w, 3 uint8) = front half | back half; ``normal_map`` is its
     tangent-space normal map (RGB = (n + 1) / 2, +X right, +Y up, as glTF expects).
     ``front_synthesized`` (h, w bool) marks the front half's texels that are not the photo's
-    own pixel there: inpainted under occluders, or bled beyond the silhouette.
+    own pixel there: inpainted under occluders, or bled beyond the silhouette;
+    ``front_shown`` (h, w bool) the front half's texels inside the silhouette, the ones the
+    model shows (the rest only pad the rim for filtering).
     """
 
     mesh: trimesh.Trimesh
@@ -47,6 +49,7 @@ class TexturedMesh:
     normal_map: np.ndarray
     watertight_mesh: trimesh.Trimesh
     front_synthesized: np.ndarray
+    front_shown: np.ndarray
 
 
 def _bleed(texture: np.ndarray, inside: np.ndarray) -> np.ndarray:
@@ -162,6 +165,6 @@ def build_textured_mesh(mesh_result: MeshResult, image: np.ndarray, mask: np.nda
     )
     visual = trimesh.visual.TextureVisuals(uv=np.concatenate([uv, rim_uv[rim_vertices]]), material=material)
     textured = trimesh.Trimesh(vertices=vertices, faces=split_faces, visual=visual, process=False)
-    front_synthesized = fill[y0:y1, x0:x1] | ~mask[y0:y1, x0:x1]
+    front_shown = mask[y0:y1, x0:x1]
     return TexturedMesh(mesh=textured, atlas=atlas, normal_map=normal_map, watertight_mesh=watertight.copy(),
-                        front_synthesized=front_synthesized)
+                        front_synthesized=fill[y0:y1, x0:x1] | ~front_shown, front_shown=front_shown)
