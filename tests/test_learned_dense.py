@@ -192,11 +192,7 @@ def test_shipped_car_segmenter_cuts_a_dark_blob_grabcut_grew_into_behind_the_car
     # model the dark windows and tyres pull toward dark colours, grows into it; the second colour
     # test on its own foreground (the blob lies 30 Lab units off the car's colours) cuts the far
     # part off (without it: IoU 0.84, 9200 extra pixels).
-    _, family = car
-    model = load_dense(SHIPPED, "segmenter", family)
-    rgba = cv2.cvtColor(cv2.imread(str(EXAMPLE_PNG), cv2.IMREAD_UNCHANGED), cv2.COLOR_BGRA2RGBA)
-    truth = rgba[..., 3] > 127
-    found = model.object_mask(composite_photo(rgba, "blobs", np.random.default_rng(0)))
+    found, truth = _shipped_mask_over_blobs(SHIPPED, car[1], EXAMPLE_PNG, seed=0)
     assert _iou(found, truth) > 0.88
     assert np.count_nonzero(found & ~truth) < 6500
 
@@ -207,13 +203,17 @@ def test_shipped_airplane_segmenter_keeps_a_dark_blob_under_the_wing_tip_out():
     # runs under the left wing tip. The segmenter trained without clutter behind its samples
     # took 5,566 pixels of it into the plane; the one trained with `synth --clutter 0.5`
     # (blobs touching the outline, half in the object's own colours) takes 1,454.
-    family = Plugins().family("airplane")
-    model = load_dense(AIRPLANE_SHIPPED, "segmenter", family)
-    rgba = cv2.cvtColor(cv2.imread(str(PLANE_PNG), cv2.IMREAD_UNCHANGED), cv2.COLOR_BGRA2RGBA)
-    truth = rgba[..., 3] > 127
-    found = model.object_mask(composite_photo(rgba, "blobs", np.random.default_rng(8)))
+    found, truth = _shipped_mask_over_blobs(AIRPLANE_SHIPPED, Plugins().family("airplane"), PLANE_PNG, seed=8)
     assert _iou(found, truth) > 0.93
     assert np.count_nonzero(found & ~truth) < 3000
+
+
+def _shipped_mask_over_blobs(weights: Path, family, example: Path, seed: int) -> tuple[np.ndarray | None, np.ndarray]:
+    """A shipped segmenter's mask of a bundled example composited over the mask benchmark's
+    blob background (rng seed ``seed``), and the example's true mask."""
+    rgba = cv2.cvtColor(cv2.imread(str(example), cv2.IMREAD_UNCHANGED), cv2.COLOR_BGRA2RGBA)
+    found = load_dense(weights, "segmenter", family).object_mask(composite_photo(rgba, "blobs", np.random.default_rng(seed)))
+    return found, rgba[..., 3] > 127
 
 
 def _iou(found: np.ndarray | None, truth: np.ndarray) -> float:
