@@ -227,7 +227,18 @@ def _px(point: np.ndarray) -> tuple[int, int]:
 
 def occluder_pixels_left(atlas: np.ndarray, composite: np.ndarray, clean: np.ndarray, occluder: np.ndarray, object_mask: np.ndarray,
                          synthesized: np.ndarray | None = None, on_model: np.ndarray | None = None) -> int:
-    """Texture pixels inside the object that are still the occluder's own pixels.
+    """How many texture pixels inside the object are still the occluder's own pixels
+    (:func:`occluder_texels`); with ``on_model`` (``TexturedMesh.front_shown``) only those
+    inside the reconstructed silhouette, the ones the model shows: the rest pad its rim with
+    the nearest silhouette colour, which next to an outline left unrebuilt may be a blend
+    with the occluder."""
+    left = occluder_texels(atlas, composite, clean, occluder, object_mask, synthesized)
+    return int(np.count_nonzero(left if on_model is None else left & on_model))
+
+
+def occluder_texels(atlas: np.ndarray, composite: np.ndarray, clean: np.ndarray, occluder: np.ndarray, object_mask: np.ndarray,
+                    synthesized: np.ndarray | None = None) -> np.ndarray:
+    """The atlas front half's texels (h, w bool) inside the object that are still the occluder's own pixels.
 
     The atlas's front half is the photo's crop (inpainted under the found occluders); it is
     located in ``composite`` by template matching (on the texels taken from the photo when
@@ -240,13 +251,10 @@ def occluder_pixels_left(atlas: np.ndarray, composite: np.ndarray, clean: np.nda
     counts only when no visible pixel of the object has its colour either (to SAME_COLOUR),
     since a dark wood the inpainting copied may match a dark skin tone by chance, while
     skin smeared in from outside the object matches nothing the object shows.
-    With ``on_model`` (``TexturedMesh.front_shown``) only the texels inside the reconstructed
-    silhouette count, the ones the model shows: the rest pad its rim with the nearest
-    silhouette colour, which next to an outline left unrebuilt may be a blend with the occluder.
     """
     front = np.ascontiguousarray(atlas[:, : atlas.shape[1] // 2, :3])
     if front.shape[0] > composite.shape[0] or front.shape[1] > composite.shape[1]:
-        return 0
+        return np.zeros(front.shape[:2], bool)
     known = None
     if synthesized is not None and synthesized.shape == front.shape[:2] and not synthesized.all():
         known = np.repeat(~synthesized[..., None], 3, axis=2).astype(np.float32)
@@ -257,14 +265,12 @@ def occluder_pixels_left(atlas: np.ndarray, composite: np.ndarray, clean: np.nda
     same = np.abs(front.astype(int) - shown).max(axis=2) <= SAME_COLOUR
     unlike = np.abs(shown - clean[window][..., :3].astype(int)).max(axis=2) > DIFFERENT_COLOUR
     left = same & unlike & occluder[window] & object_mask[window]
-    if on_model is not None:
-        left &= on_model
     if known is not None:
         made_up = left & synthesized
         seen_colours = composite[object_mask & ~occluder][..., :3].astype(int)
         explained = np.array([_colour_shown(colour, seen_colours) for colour in front[made_up].astype(int)], bool)
         left[made_up] = ~explained
-    return int(np.count_nonzero(left))
+    return left
 
 
 def _colour_shown(colour: np.ndarray, colours: np.ndarray) -> bool:
@@ -356,9 +362,10 @@ def _composite_row(plugins, family, mesh_id, index, composite: Composite, image,
         result = _reconstruct(plugins, family, composite.image, composite.visible, given, settings)
         row.update(_scores(result, gt, clean))
         row["detected_fraction"] = result.report.get("occlusion", {}).get("occluded_fraction", 0.0)
-        texels = (result.textured.atlas, composite.image, image, composite.occluder, mask, result.textured.front_synthesized)
-        row["occluder_pixels_left"] = occluder_pixels_left(*texels)
-        row["occluder_pixels_shown"] = occluder_pixels_left(*texels, on_model=result.textured.front_shown)
+        # Located and judged once; counted over the whole front half and on the model only.
+        left = occluder_texels(result.textured.atlas, composite.image, image, composite.occluder, mask, result.textured.front_synthesized)
+        row["occluder_pixels_left"] = int(np.count_nonzero(left))
+        row["occluder_pixels_shown"] = int(np.count_nonzero(left & result.textured.front_shown))
     except NotFrontalError as exc:
         row["rejected"] = str(exc).splitlines()[0]
     except Frontal3DError as exc:
