@@ -391,6 +391,7 @@ def _reconstruct_shape_and_texture(
             window = np.s_[crop.y0 : crop.y0 + crop.height, crop.x0 : crop.x0 + crop.width]
             full_occluders = None if occluders is None else occluders[window]
             full_occluded = occlusion.occluded_at_full_resolution(full_occluded, full_mask, object_mask[window], full_occluders)
+        report.data["occlusion"]["inpainted_pixels"] = int(np.count_nonzero(full_occluded & full_mask))
         back_rules = {}
         for rules in plugins.hook.frontal3d_back_texture_rules():
             back_rules.update(rules)

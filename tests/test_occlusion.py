@@ -413,6 +413,7 @@ def test_a_person_behind_the_object_leaves_no_colour_on_its_texture(monkeypatch)
     monkeypatch.setattr(pipeline.people_detector, "detect_people_with_evidence", lambda rgb, object_mask=None: (body, ["pose"]))
     result = frontal3d.reconstruct(image, "guitar", mask=guitar)
     assert result.report["occlusion"]["occluded_fraction"] == 0  # behind: nothing rebuilt
+    assert result.report["occlusion"]["inpainted_pixels"] > 0  # ... but the slivers are inpainted, and the report says so
     front = result.textured.atlas[:, : result.textured.atlas.shape[1] // 2].astype(int)
     magenta = (front[..., 0] > 150) & (front[..., 1] < 100) & (front[..., 2] > 150)
     assert not (magenta & result.textured.front_shown).any()  # 510 texels when taken from the photo
