@@ -28,6 +28,7 @@ from frontal3d.plugins import Plugins
 from frontal3d.render import TemplateRenders, load_or_render
 from frontal3d.stages import align, boundary, classify, mesh, occlusion, segment, texture, warp
 from frontal3d.stages.export import export_all
+from frontal3d.stages.mirror_symmetry import template_mirror
 
 log = logging.getLogger("frontal3d")
 
@@ -327,9 +328,10 @@ def _reconstruct_shape_and_texture(
         work_occluders = _to_working(occluders.astype(np.uint8), crop, cv2.INTER_NEAREST) > 0 if occluders is not None else np.zeros_like(work_mask)
         if people_near.any():
             work_occluders |= occlusion.in_front(_to_working(people_near.astype(np.uint8), crop, cv2.INTER_NEAREST) > 0, work_mask, aligned_template_mask)
-        rebuilt = occlusion.rebuild_silhouette(
-            work_mask, work_occluders, aligned_template_mask, k=k,
-        )
+        mirror_axis = None
+        if settings["outline_mirror"] and work_occluders.any():
+            mirror_axis = np.deg2rad(template_mirror(renders)[1]) - similarity.angle
+        rebuilt = occlusion.rebuild_silhouette(work_mask, work_occluders, aligned_template_mask, k=k, mirror_axis=mirror_axis)
         work_mask, occluded = rebuilt.mask, rebuilt.occluded
         report.data["occlusion"] = rebuilt.summary()
         maps["occlusion_mask"] = occluded

@@ -19,6 +19,7 @@ from frontal3d.masks import mask_extent
 from frontal3d.stages.align import Similarity, warp_mask
 from frontal3d.stages.boundary import default_k, match_contours, trace_contour
 from frontal3d.stages.classify import Agreement, ClassifierContext, silhouette_agreement
+from frontal3d.stages.mirror_outline import MirrorLine, find_mirror_line, mirror_filled
 from frontal3d.stages.regions import reconstruct_region_map
 from frontal3d.stages.segment import distance_to_colours
 from scipy.ndimage import binary_fill_holes
@@ -72,14 +73,18 @@ class RebuiltSilhouette:
     occluded: np.ndarray
     original_area: int
     boundary_parts: list[BoundaryPart] = field(default_factory=list)
+    mirror: MirrorLine | None = None
 
     def summary(self) -> dict[str, Any]:
         area = int(self.mask.sum())
-        return {
+        summary = {
             "occluded_fraction": round(float(self.occluded.sum()) / max(area, 1), 4),
             "restored_pixels": int(area - self.original_area),
             "rebuilt_boundary_parts": [part.to_dict() for part in self.boundary_parts],
         }
+        if self.mirror is not None:
+            summary["mirror"] = {**self.mirror.to_dict(), "used": self.mirror.usable}
+        return summary
 
 
 def find_occluders(plugins: Any, image: np.ndarray, object_mask: np.ndarray, settings: dict[str, Any], user_mask: np.ndarray | None,
@@ -242,7 +247,8 @@ def seen_iou(template_mask: np.ndarray, similarity: Similarity, object_mask: np.
     return float(np.count_nonzero(placed & object_mask & seen) / max(np.count_nonzero((placed | object_mask) & seen), 1))
 
 
-def rebuild_silhouette(object_mask: np.ndarray, occluders: np.ndarray, aligned_template_mask: np.ndarray, *, k: int | None = None) -> RebuiltSilhouette:
+def rebuild_silhouette(object_mask: np.ndarray, occluders: np.ndarray, aligned_template_mask: np.ndarray, *, k: int | None = None,
+                       mirror_axis: float | None = None) -> RebuiltSilhouette:
     """Restore the silhouette where occluders cover it, using the aligned template.
 
     1. Fill: the object plus the aligned template near the occluders, closed and with
@@ -252,8 +258,12 @@ def rebuild_silhouette(object_mask: np.ndarray, occluders: np.ndarray, aligned_t
        :func:`default_k`), and each part is replaced by the template stretch matched
        between its two visible end points, moved by the similarity that sends the
        template's end points onto them (the paper's procedure).
-    3. The closed outline is filled and the visible object added back; the occluded
-       pixels (to inpaint) are the rebuilt mask's pixels under the occluders or restored.
+    3. The closed outline is filled and the visible object added back.
+    4. With ``mirror_axis`` (the placed template's mirror line, radians from image-up), the
+       object's own mirror image replaces the template's guess wherever it is seen, when
+       the seen object matches its mirror image better than the template
+       (:mod:`~frontal3d.stages.mirror_outline`).
+    The occluded pixels (to inpaint) are the rebuilt mask's pixels under the occluders or restored.
     """
     object_mask = np.asarray(object_mask, dtype=bool)
     occluders = np.asarray(occluders, dtype=bool)
@@ -276,10 +286,13 @@ def rebuild_silhouette(object_mask: np.ndarray, occluders: np.ndarray, aligned_t
         outline = np.zeros(object_mask.shape, np.uint8)
         cv2.fillPoly(outline, [np.round(contour).astype(np.int32)], 1)
         filled = binary_fill_holes((outline > 0) | visible)
+    mirror = find_mirror_line(visible, reach, aligned_template_mask, mirror_axis) if mirror_axis is not None else None
+    if mirror is not None and mirror.usable:
+        filled = mirror_filled(filled, visible, reach, occluders, mirror)
     # Inpainted: every restored pixel (what the image shows there is not the object) and the
     # occluders with one pixel of slack (their anti-aliased edge).
     occluded = filled & ((cv2.dilate(occluders.astype(np.uint8), _disc(1)) > 0) | ~object_mask)
-    return RebuiltSilhouette(filled, occluded, original_area, rebuilt_parts)
+    return RebuiltSilhouette(filled, occluded, original_area, rebuilt_parts, mirror)
 
 
 def occluded_at_full_resolution(upsampled: np.ndarray, rebuilt_mask: np.ndarray, seen_object: np.ndarray,

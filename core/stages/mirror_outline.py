@@ -1,0 +1,135 @@
+"""Mirror completion of a hidden outline (issue #7): the object's own other half, where it is seen.
+
+The paper rebuilds each hidden stretch of the outline from the aligned template. That
+guess is only as good as the template's likeness: a star-shaped or pointed guitar body,
+for which no template exists, gets a round bout where a point should be. Most objects
+a family covers are mirror-symmetric in their canonical view (a guitar's face about the
+neck, a plane's planform about the fuselage), so where the mirror image of a hidden
+pixel is seen, the object itself says what is there.
+
+The mirror line is searched near the aligned template's axis. Agreement is counted only
+where a pixel and its mirror image are both seen, for the object's mirror image and for
+the template on the same pixels; the mirror replaces the template only where it explains
+what is seen better than the template does, and only where the mirror image is seen.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import cv2
+import numpy as np
+from scipy.ndimage import binary_fill_holes
+
+from frontal3d.masks import mask_extent
+
+#: Tilts (degrees) of the mirror line searched about the aligned template's axis.
+TILTS = tuple(range(-8, 9))
+#: How far (share of the object's size) the mirror line may sit from the template's axis.
+OFFSET_LIMIT = 0.15
+#: The object's mirror image must agree with the object on the pixels seen on both sides
+#: at least this well (IoU) before it may stand in for the template.
+MIN_AGREEMENT = 0.8
+#: Pixels seen on both sides must hold at least this share of the seen object: a mirror
+#: judged on a sliver is not evidence.
+MIN_SEEN_BOTH = 0.5
+
+
+@dataclass(frozen=True)
+class MirrorLine:
+    """A mirror line in image pixels, the object's agreement with its mirror image and the template's."""
+
+    matrix: np.ndarray  # 2x3 affine reflection (an involution: it is its own inverse)
+    agreement: float
+    template_agreement: float
+    seen_both: float  # share of the seen object whose mirror image is seen too
+
+    @property
+    def usable(self) -> bool:
+        """The object is symmetric on what is seen, and more so than the template is like it."""
+        return self.seen_both >= MIN_SEEN_BOTH and self.agreement >= MIN_AGREEMENT and self.agreement > self.template_agreement
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "agreement": round(self.agreement, 4),
+            "template_agreement": round(self.template_agreement, 4),
+            "seen_both": round(self.seen_both, 4),
+        }
+
+
+def find_mirror_line(visible: np.ndarray, unknown: np.ndarray, template_mask: np.ndarray, axis: float) -> MirrorLine | None:
+    """The line, near the placed template's axis, about which the seen object best matches its mirror image.
+
+    ``visible`` is the seen object, ``unknown`` the pixels whose content is not seen (near
+    occluders; off the image counts as unknown too), ``template_mask`` the placed template,
+    ``axis`` its mirror line's direction (radians from image-up, counter-clockwise on screen).
+    For each tilt the masks are turned so the line is vertical; every row's overlap with its
+    own reflection about every column is a convolution, done by FFT for all columns at once:
+    with V the seen object and K the seen pixels, the IoU on pixels seen on both sides is
+    (V * V) / (2 (V * K) - V * V).
+    """
+    visible = np.asarray(visible, dtype=bool)
+    if not visible.any() or not template_mask.any():
+        return None
+    rows, cols = np.nonzero(template_mask)
+    centre = (float(cols.mean()), float(rows.mean()))
+    size = mask_extent(template_mask)
+    side = int(np.ceil(np.hypot(*visible.shape))) + 2
+    seen = ~np.asarray(unknown, dtype=bool)
+    known, seen_object = seen.astype(np.float32), (visible & seen).astype(np.float32)
+    lo = int(np.floor(2 * (side / 2 - OFFSET_LIMIT * size)))
+    hi = int(np.ceil(2 * (side / 2 + OFFSET_LIMIT * size)))
+    doubled = np.arange(max(lo, 0), min(hi, 2 * side - 1) + 1)
+    best: tuple[float, np.ndarray] | None = None
+    for tilt in TILTS:
+        turn = _upright(centre, axis + np.deg2rad(tilt), side)
+        v = cv2.warpAffine(seen_object, turn[:2], (side, side), flags=cv2.INTER_LINEAR, borderValue=0.0)
+        k = cv2.warpAffine(known, turn[:2], (side, side), flags=cv2.INTER_LINEAR, borderValue=0.0)
+        fv, fk = np.fft.rfft(v, n=2 * side, axis=1), np.fft.rfft(k, n=2 * side, axis=1)
+        inter = np.fft.irfft(fv * fv, n=2 * side, axis=1).sum(axis=0)[doubled]
+        seen_side = np.fft.irfft(fv * fk, n=2 * side, axis=1).sum(axis=0)[doubled]
+        iou = inter / np.maximum(2 * seen_side - inter, 1e-9)
+        index = int(np.argmax(iou))
+        if best is None or iou[index] > best[0]:
+            flip = np.array([[-1.0, 0.0, float(doubled[index])], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+            best = (float(iou[index]), (np.linalg.inv(turn) @ flip @ turn)[:2])
+    agreement, matrix = best
+    seen_both = seen & _reflect(seen, matrix, outside=False)
+    template = np.asarray(template_mask, dtype=bool)
+    template_agreement = np.count_nonzero(template & visible & seen_both) / max(np.count_nonzero((template | visible) & seen_both), 1)
+    share = np.count_nonzero(visible & seen_both) / max(np.count_nonzero(visible), 1)
+    return MirrorLine(matrix, agreement, float(template_agreement), float(share))
+
+
+def mirror_filled(rebuilt: np.ndarray, visible: np.ndarray, unknown: np.ndarray, occluders: np.ndarray, line: MirrorLine) -> np.ndarray:
+    """The rebuilt mask with the template's guess replaced by the object's mirror image wherever that is seen.
+
+    The template's restored pixels stay only where the mirror image is hidden too; the
+    mirror image adds pixels only under the occluders (one pixel of slack), never on what
+    the image shows as background.
+    """
+    visible = np.asarray(visible, dtype=bool)
+    mirror_unknown = _reflect(np.asarray(unknown, dtype=bool), line.matrix, outside=True)
+    restored_by_template = np.asarray(rebuilt, dtype=bool) & ~visible & mirror_unknown
+    under_occluders = cv2.dilate(np.asarray(occluders, dtype=np.uint8), np.ones((3, 3), np.uint8)) > 0
+    mirrored = _reflect(visible, line.matrix, outside=False) & ~mirror_unknown & under_occluders
+    joined = visible | restored_by_template | mirrored
+    joined = cv2.morphologyEx(joined.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8)) > 0
+    count, pieces = cv2.connectedComponents(joined.astype(np.uint8))
+    keep = np.unique(pieces[visible & (pieces > 0)])
+    return binary_fill_holes(np.isin(pieces, keep) | visible)
+
+
+def _upright(centre: tuple[float, float], direction: float, side: int) -> np.ndarray:
+    """3x3 affine turning the image about ``centre`` so a line at ``direction`` is vertical, centred on a side x side canvas."""
+    turn = np.vstack([cv2.getRotationMatrix2D(centre, -np.rad2deg(direction), 1.0), [0.0, 0.0, 1.0]])
+    turn[:2, 2] += (side / 2 - centre[0], side / 2 - centre[1])
+    return turn
+
+
+def _reflect(mask: np.ndarray, matrix: np.ndarray, *, outside: bool) -> np.ndarray:
+    """The mask seen in the mirror: pixel p takes the value at its mirror image (``outside`` beyond the image)."""
+    height, width = mask.shape
+    return cv2.warpAffine(mask.astype(np.uint8), matrix, (width, height), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
+                          borderMode=cv2.BORDER_CONSTANT, borderValue=int(outside)) > 0
