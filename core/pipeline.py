@@ -327,10 +327,9 @@ def _reconstruct_shape_and_texture(
     with report.stage("occlusion", progress):
         work_occluders = _to_working(occluders.astype(np.uint8), crop, cv2.INTER_NEAREST) > 0 if occluders is not None else np.zeros_like(work_mask)
         if people_near.any():
-            work_occluders |= occlusion.in_front(_to_working(people_near.astype(np.uint8), crop, cv2.INTER_NEAREST) > 0, work_mask, aligned_template_mask)
-        mirror_axis = None
-        if settings["outline_mirror"] and work_occluders.any():
-            mirror_axis = np.deg2rad(template_mirror(renders)[1]) - similarity.angle
+            work_occluders |= occlusion.in_front(_to_working(people_near.astype(np.uint8), crop, cv2.INTER_NEAREST) > 0, work_mask,
+                                                 aligned_template_mask, _mirror_axis(settings, renders, similarity))
+        mirror_axis = _mirror_axis(settings, renders, similarity) if work_occluders.any() else None
         rebuilt = occlusion.rebuild_silhouette(work_mask, work_occluders, aligned_template_mask, k=k, mirror_axis=mirror_axis)
         work_mask, occluded = rebuilt.mask, rebuilt.occluded
         report.data["occlusion"] = rebuilt.summary()
@@ -646,7 +645,12 @@ def _people_in_front(plugins: Plugins, fam: Family, settings: dict[str, Any], su
     agreement = classify.silhouette_agreement(probable, renders, np.deg2rad(float(settings["max_angle_deg"])), hidden=hidden)
     best = max(agreement, key=lambda s: agreement[s].iou)
     placed = align.warp_mask(renders[best].mask, agreement[best].similarity, object_mask.shape)
-    return occlusion.in_front(people_near, object_mask, placed)
+    return occlusion.in_front(people_near, object_mask, placed, _mirror_axis(settings, renders[best], agreement[best].similarity))
+
+
+def _mirror_axis(settings: dict[str, Any], renders: TemplateRenders, similarity: align.Similarity) -> float | None:
+    """The placed template's mirror line (radians from image-up) when the family rebuilds outlines by mirror, else None."""
+    return np.deg2rad(template_mirror(renders)[1]) - similarity.angle if settings["outline_mirror"] else None
 
 
 def _around(mask: np.ndarray) -> np.ndarray:

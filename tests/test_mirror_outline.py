@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from frontal3d.stages.mirror_outline import find_mirror_line
+from frontal3d.stages.mirror_outline import find_mirror_line, reflected
 from frontal3d.stages.occlusion import rebuild_silhouette
 
 SHAPE = (320, 280)
@@ -122,3 +122,34 @@ def test_the_pipeline_rebuilds_a_hidden_point_of_a_star_body_from_its_twin():
     assert runs[True].mesh.is_watertight
     mirrored, from_template = (_iou(outline(runs[mirror]), outline(clean)) for mirror in (True, False))
     assert mirrored > 0.94 and mirrored > from_template + 0.03  # 0.954 and 0.907 when written
+
+
+def test_on_a_large_photo_the_line_is_searched_small_and_reflects_at_full_size():
+    truth = _star(tilt_deg=12.0)
+    big = cv2.resize(truth.astype(np.uint8), (SHAPE[1] * 3, SHAPE[0] * 3), interpolation=cv2.INTER_NEAREST) > 0
+    line = find_mirror_line(big, np.zeros_like(big), cv2.dilate(big.astype(np.uint8), np.ones((15, 15), np.uint8)) > 0, np.deg2rad(10.0))
+    assert line is not None and line.agreement > 0.95
+    assert _iou(reflected(big, line), big) > 0.95
+
+
+def test_a_person_biting_a_bout_the_templates_cutaway_fits_is_still_in_front():
+    """The template explains the bite (its outline is the bite's), so on its own it expects no
+    object there and the person passes for one behind; the other bout, mirrored, expects the body."""
+    from frontal3d.stages.occlusion import in_front
+
+    truth = np.zeros(SHAPE, np.uint8)
+    cv2.ellipse(truth, (140, 200), (90, 100), 0, 0, 360, 1, -1)
+    cv2.rectangle(truth, (130, 20), (150, 110), 1, -1)
+    truth = truth > 0
+    person = np.zeros(SHAPE, np.uint8)
+    cv2.circle(person, (40, 250), 75, 1, -1)
+    person = person > 0
+    visible = truth & ~person
+    # A template of another body (5 % slimmer) with a cutaway just where the person bites.
+    template = cv2.warpAffine(visible.astype(np.uint8), np.float32([[0.95, 0, 7], [0, 1, 0]]), SHAPE[::-1]) > 0
+
+    assert not in_front(person, visible, template).any()
+    found = in_front(person, visible, template, mirror_axis=0.0)
+    bite = truth & person
+    assert (found & bite).sum() > 0.9 * bite.sum()
+    assert not (found & ~person).any()

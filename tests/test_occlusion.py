@@ -600,7 +600,7 @@ def test_the_template_judging_who_is_in_front_is_placed_on_the_outline_away_from
     monkeypatch.setattr(pipeline, "_subtype_renders", lambda plugins, fam, settings, subtype: {"electric": _flat_renders(guitar)})
 
     def judged(visible, person, free_outline):
-        return pipeline._people_in_front(None, family, {"max_angle_deg": 30.0}, None, visible, visible, person, free_outline=free_outline)
+        return pipeline._people_in_front(None, family, {"max_angle_deg": 30.0, "outline_mirror": False}, None, visible, visible, person, free_outline=free_outline)
 
     torso = np.zeros(guitar.shape, bool)
     torso[180:, 40:200] = True

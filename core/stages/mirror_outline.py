@@ -34,6 +34,9 @@ MIN_AGREEMENT = 0.8
 #: Pixels seen on both sides must hold at least this share of the seen object: a mirror
 #: judged on a sliver is not evidence.
 MIN_SEEN_BOTH = 0.5
+#: Longest side, in pixels, of the grid the line is searched on (a photo's full resolution
+#: is shrunk to it; the working grid is smaller already).
+SEARCH_SIZE = 400
 
 
 @dataclass(frozen=True)
@@ -72,6 +75,8 @@ def find_mirror_line(visible: np.ndarray, unknown: np.ndarray, template_mask: np
     visible = np.asarray(visible, dtype=bool)
     if not visible.any() or not template_mask.any():
         return None
+    if max(visible.shape) > SEARCH_SIZE:
+        return _found_on_smaller_grid(visible, unknown, template_mask, axis)
     rows, cols = np.nonzero(template_mask)
     centre = (float(cols.mean()), float(rows.mean()))
     size = mask_extent(template_mask)
@@ -119,6 +124,27 @@ def mirror_filled(rebuilt: np.ndarray, visible: np.ndarray, unknown: np.ndarray,
     count, pieces = cv2.connectedComponents(joined.astype(np.uint8))
     keep = np.unique(pieces[visible & (pieces > 0)])
     return binary_fill_holes(np.isin(pieces, keep) | visible)
+
+
+def _found_on_smaller_grid(visible: np.ndarray, unknown: np.ndarray, template_mask: np.ndarray, axis: float) -> MirrorLine | None:
+    """:func:`find_mirror_line` on the masks shrunk to SEARCH_SIZE, its reflection carried back to full-size pixels."""
+    factor = SEARCH_SIZE / max(visible.shape)
+    size = (max(1, round(visible.shape[1] * factor)), max(1, round(visible.shape[0] * factor)))
+    def shrunk(mask: np.ndarray) -> np.ndarray:
+        return cv2.resize(np.asarray(mask, dtype=np.float32), size, interpolation=cv2.INTER_AREA) >= 0.5
+    line = find_mirror_line(shrunk(visible), shrunk(unknown), shrunk(template_mask), axis)
+    if line is None:
+        return None
+    # cv2.resize's pixel centres: x_small = (x + 0.5) * f - 0.5, per axis.
+    fx, fy = size[0] / visible.shape[1], size[1] / visible.shape[0]
+    to_small = np.array([[fx, 0.0, 0.5 * fx - 0.5], [0.0, fy, 0.5 * fy - 0.5], [0.0, 0.0, 1.0]])
+    matrix = np.linalg.inv(to_small) @ np.vstack([line.matrix, [0.0, 0.0, 1.0]]) @ to_small
+    return MirrorLine(matrix[:2], line.agreement, line.template_agreement, line.seen_both)
+
+
+def reflected(mask: np.ndarray, line: MirrorLine) -> np.ndarray:
+    """The mask's mirror image about ``line`` (nothing beyond the image)."""
+    return _reflect(np.asarray(mask, dtype=bool), line.matrix, outside=False)
 
 
 def _upright(centre: tuple[float, float], direction: float, side: int) -> np.ndarray:

@@ -19,7 +19,7 @@ from frontal3d.masks import mask_extent
 from frontal3d.stages.align import Similarity, warp_mask
 from frontal3d.stages.boundary import default_k, match_contours, trace_contour
 from frontal3d.stages.classify import Agreement, ClassifierContext, silhouette_agreement
-from frontal3d.stages.mirror_outline import MirrorLine, find_mirror_line, mirror_filled
+from frontal3d.stages.mirror_outline import MirrorLine, find_mirror_line, mirror_filled, reflected
 from frontal3d.stages.regions import reconstruct_region_map
 from frontal3d.stages.segment import distance_to_colours
 from scipy.ndimage import binary_fill_holes
@@ -142,7 +142,7 @@ def hidden_by(occluders: np.ndarray, object_mask: np.ndarray) -> np.ndarray:
     return cv2.dilate(np.asarray(occluders, dtype=np.uint8), _disc(radius)) > 0
 
 
-def in_front(people: np.ndarray, object_mask: np.ndarray, aligned_template_mask: np.ndarray) -> np.ndarray:
+def in_front(people: np.ndarray, object_mask: np.ndarray, aligned_template_mask: np.ndarray, mirror_axis: float | None = None) -> np.ndarray:
     """The pixels by which people hide the object, found with the aligned template.
 
     Where the template expects the object (deeper than OCCLUDER_REACH inside it) but the
@@ -155,6 +155,9 @@ def in_front(people: np.ndarray, object_mask: np.ndarray, aligned_template_mask:
     template), seen only in a band along the outline: what stands in front must hide a
     stretch at least twice IN_FRONT_DEPTH across, in pieces of at least IN_FRONT_MIN_AREA.
     People's pixels on the object (a held guitar the segmenter counts as the person) stay object.
+    With ``mirror_axis`` (the placed template's mirror line) the object's own mirror image
+    also expects the object, where it matches the seen object better than the template
+    (:mod:`~frontal3d.stages.mirror_outline`): a bite the template's cutaway happens to fit.
     """
     people = np.asarray(people, dtype=bool)
     off_object = ~np.asarray(object_mask, dtype=bool)
@@ -162,6 +165,10 @@ def in_front(people: np.ndarray, object_mask: np.ndarray, aligned_template_mask:
     if not template.any():
         return np.zeros_like(people)
     size = mask_extent(template)
+    if mirror_axis is not None and people.any():
+        line = find_mirror_line(~off_object, hidden_by(people, ~off_object), template > 0, mirror_axis)
+        if line is not None and line.usable:
+            template = template | reflected(~off_object, line).astype(np.uint8)
     radius = max(1, round(OCCLUDER_REACH * size))
     unseen = off_object & (cv2.erode(template, _disc(radius)) > 0)
     _count, pieces = cv2.connectedComponents(unseen.astype(np.uint8))
