@@ -326,10 +326,10 @@ def _reconstruct_shape_and_texture(
 
     with report.stage("occlusion", progress):
         work_occluders = _to_working(occluders.astype(np.uint8), crop, cv2.INTER_NEAREST) > 0 if occluders is not None else np.zeros_like(work_mask)
+        mirror_axis = _mirror_axis(settings, renders, similarity) if people_near.any() or work_occluders.any() else None
         if people_near.any():
             work_occluders |= occlusion.in_front(_to_working(people_near.astype(np.uint8), crop, cv2.INTER_NEAREST) > 0, work_mask,
-                                                 aligned_template_mask, _mirror_axis(settings, renders, similarity))
-        mirror_axis = _mirror_axis(settings, renders, similarity) if work_occluders.any() else None
+                                                 aligned_template_mask, mirror_axis)
         rebuilt = occlusion.rebuild_silhouette(work_mask, work_occluders, aligned_template_mask, k=k, mirror_axis=mirror_axis)
         work_mask, occluded = rebuilt.mask, rebuilt.occluded
         report.data["occlusion"] = rebuilt.summary()

@@ -121,7 +121,7 @@ def mirror_filled(rebuilt: np.ndarray, visible: np.ndarray, unknown: np.ndarray,
     mirrored = _reflect(visible, line.matrix, outside=False) & ~mirror_unknown & under_occluders
     joined = visible | restored_by_template | mirrored
     joined = cv2.morphologyEx(joined.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8)) > 0
-    count, pieces = cv2.connectedComponents(joined.astype(np.uint8))
+    _count, pieces = cv2.connectedComponents(joined.astype(np.uint8))
     keep = np.unique(pieces[visible & (pieces > 0)])
     return binary_fill_holes(np.isin(pieces, keep) | visible)
 
