@@ -129,7 +129,7 @@ def test_on_a_large_photo_the_line_is_searched_small_and_reflects_at_full_size()
     big = cv2.resize(truth.astype(np.uint8), (SHAPE[1] * 3, SHAPE[0] * 3), interpolation=cv2.INTER_NEAREST) > 0
     line = find_mirror_line(big, np.zeros_like(big), cv2.dilate(big.astype(np.uint8), np.ones((15, 15), np.uint8)) > 0, np.deg2rad(10.0))
     assert line is not None and line.agreement > 0.95
-    assert _iou(reflected(big, line), big) > 0.95
+    assert _iou(reflected(big, line.matrix), big) > 0.95
 
 
 def test_a_person_biting_a_bout_the_templates_cutaway_fits_is_still_in_front():

@@ -23,6 +23,7 @@ import numpy as np
 from scipy.ndimage import binary_fill_holes
 
 from frontal3d.masks import mask_extent
+from frontal3d.stages.mirror_symmetry import upright_turn
 
 #: Tilts (degrees) of the mirror line searched about the aligned template's axis.
 TILTS = tuple(range(-8, 9))
@@ -88,7 +89,7 @@ def find_mirror_line(visible: np.ndarray, unknown: np.ndarray, template_mask: np
     doubled = np.arange(max(lo, 0), min(hi, 2 * side - 1) + 1)
     best: tuple[float, np.ndarray] | None = None
     for tilt in TILTS:
-        turn = _upright(centre, axis + np.deg2rad(tilt), side)
+        turn = upright_turn(centre, axis + np.deg2rad(tilt), side)
         v = cv2.warpAffine(seen_object, turn[:2], (side, side), flags=cv2.INTER_LINEAR, borderValue=0.0)
         k = cv2.warpAffine(known, turn[:2], (side, side), flags=cv2.INTER_LINEAR, borderValue=0.0)
         fv, fk = np.fft.rfft(v, n=2 * side, axis=1), np.fft.rfft(k, n=2 * side, axis=1)
@@ -100,7 +101,7 @@ def find_mirror_line(visible: np.ndarray, unknown: np.ndarray, template_mask: np
             flip = np.array([[-1.0, 0.0, float(doubled[index])], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
             best = (float(iou[index]), (np.linalg.inv(turn) @ flip @ turn)[:2])
     agreement, matrix = best
-    seen_both = seen & _reflect(seen, matrix, outside=False)
+    seen_both = seen & reflected(seen, matrix)
     template = np.asarray(template_mask, dtype=bool)
     template_agreement = np.count_nonzero(template & visible & seen_both) / max(np.count_nonzero((template | visible) & seen_both), 1)
     share = np.count_nonzero(visible & seen_both) / max(np.count_nonzero(visible), 1)
@@ -115,10 +116,10 @@ def mirror_filled(rebuilt: np.ndarray, visible: np.ndarray, unknown: np.ndarray,
     the image shows as background.
     """
     visible = np.asarray(visible, dtype=bool)
-    mirror_unknown = _reflect(np.asarray(unknown, dtype=bool), line.matrix, outside=True)
+    mirror_unknown = reflected(unknown, line.matrix, outside=True)
     restored_by_template = np.asarray(rebuilt, dtype=bool) & ~visible & mirror_unknown
     under_occluders = cv2.dilate(np.asarray(occluders, dtype=np.uint8), np.ones((3, 3), np.uint8)) > 0
-    mirrored = _reflect(visible, line.matrix, outside=False) & ~mirror_unknown & under_occluders
+    mirrored = reflected(visible, line.matrix) & ~mirror_unknown & under_occluders
     joined = visible | restored_by_template | mirrored
     joined = cv2.morphologyEx(joined.astype(np.uint8), cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8)) > 0
     _count, pieces = cv2.connectedComponents(joined.astype(np.uint8))
@@ -142,20 +143,9 @@ def _found_on_smaller_grid(visible: np.ndarray, unknown: np.ndarray, template_ma
     return MirrorLine(matrix[:2], line.agreement, line.template_agreement, line.seen_both)
 
 
-def reflected(mask: np.ndarray, line: MirrorLine) -> np.ndarray:
-    """The mask's mirror image about ``line`` (nothing beyond the image)."""
-    return _reflect(np.asarray(mask, dtype=bool), line.matrix, outside=False)
-
-
-def _upright(centre: tuple[float, float], direction: float, side: int) -> np.ndarray:
-    """3x3 affine turning the image about ``centre`` so a line at ``direction`` is vertical, centred on a side x side canvas."""
-    turn = np.vstack([cv2.getRotationMatrix2D(centre, -np.rad2deg(direction), 1.0), [0.0, 0.0, 1.0]])
-    turn[:2, 2] += (side / 2 - centre[0], side / 2 - centre[1])
-    return turn
-
-
-def _reflect(mask: np.ndarray, matrix: np.ndarray, *, outside: bool) -> np.ndarray:
-    """The mask seen in the mirror: pixel p takes the value at its mirror image (``outside`` beyond the image)."""
+def reflected(mask: np.ndarray, matrix: np.ndarray, *, outside: bool = False) -> np.ndarray:
+    """The mask seen in the mirror ``matrix`` (a :class:`MirrorLine`'s): pixel p takes the value at
+    its mirror image, ``outside`` where that lies beyond the image."""
     height, width = mask.shape
-    return cv2.warpAffine(mask.astype(np.uint8), matrix, (width, height), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
+    return cv2.warpAffine(np.asarray(mask, dtype=np.uint8), matrix, (width, height), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
                           borderMode=cv2.BORDER_CONSTANT, borderValue=int(outside)) > 0

@@ -98,9 +98,7 @@ def best_mirror(mask: np.ndarray, axis: float, tilts_deg: tuple[int, ...], bends
     best_iou, best_tilt = -1.0, 0.0
     for tilt in tilts_deg:
         direction = axis + np.deg2rad(tilt)
-        matrix = cv2.getRotationMatrix2D(centre, -np.rad2deg(direction), scale)
-        matrix[:, 2] += (GRID / 2 - centre[0], GRID / 2 - centre[1])
-        upright = cv2.warpAffine(small, matrix, (GRID, GRID), flags=cv2.INTER_LINEAR, borderValue=0.0)
+        upright = cv2.warpAffine(small, upright_turn(centre, direction, GRID, scale)[:2], (GRID, GRID), flags=cv2.INTER_LINEAR, borderValue=0.0)
         spectrum = np.fft.rfft(upright, n=2 * GRID, axis=1)
         overlap = np.fft.irfft(spectrum * spectrum, n=2 * GRID, axis=1)  # row y, index 2c
         occupied = np.flatnonzero(upright.sum(axis=1) > 0)
@@ -115,6 +113,15 @@ def best_mirror(mask: np.ndarray, axis: float, tilts_deg: tuple[int, ...], bends
             if iou > best_iou:
                 best_iou, best_tilt = iou, float(np.rad2deg(direction))
     return best_iou, best_tilt
+
+
+def upright_turn(centre: tuple[float, float], direction: float, side: int, scale: float = 1.0) -> np.ndarray:
+    """3x3 affine turning (and scaling) the image about ``centre`` so a line at ``direction``
+    (radians from image-up, counter-clockwise on screen) is vertical, ``centre`` landing in
+    the middle of a side x side canvas."""
+    turn = np.vstack([cv2.getRotationMatrix2D(centre, -np.rad2deg(direction), scale), [0.0, 0.0, 1.0]])
+    turn[:2, 2] += (side / 2 - centre[0], side / 2 - centre[1])
+    return turn
 
 
 def _cropped(mask: np.ndarray) -> np.ndarray:

@@ -168,7 +168,7 @@ def in_front(people: np.ndarray, object_mask: np.ndarray, aligned_template_mask:
     if mirror_axis is not None and people.any():
         line = find_mirror_line(~off_object, hidden_by(people, ~off_object), template > 0, mirror_axis)
         if line is not None and line.usable:
-            template = template | reflected(~off_object, line).astype(np.uint8)
+            template = template | reflected(~off_object, line.matrix).astype(np.uint8)
     radius = max(1, round(OCCLUDER_REACH * size))
     unseen = off_object & (cv2.erode(template, _disc(radius)) > 0)
     _count, pieces = cv2.connectedComponents(unseen.astype(np.uint8))
