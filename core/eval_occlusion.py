@@ -226,14 +226,9 @@ def _px(point: np.ndarray) -> tuple[int, int]:
 
 
 def occluder_pixels_left(atlas: np.ndarray, composite: np.ndarray, clean: np.ndarray, occluder: np.ndarray, object_mask: np.ndarray,
-                         synthesized: np.ndarray | None = None, on_model: np.ndarray | None = None) -> int:
-    """How many texture pixels inside the object are still the occluder's own pixels
-    (:func:`occluder_texels`); with ``on_model`` (``TexturedMesh.front_shown``) only those
-    inside the reconstructed silhouette, the ones the model shows: the rest pad its rim with
-    the nearest silhouette colour, which next to an outline left unrebuilt may be a blend
-    with the occluder."""
-    left = occluder_texels(atlas, composite, clean, occluder, object_mask, synthesized)
-    return int(np.count_nonzero(left if on_model is None else left & on_model))
+                         synthesized: np.ndarray | None = None) -> int:
+    """How many texture pixels inside the object are still the occluder's own pixels (:func:`occluder_texels`)."""
+    return int(np.count_nonzero(occluder_texels(atlas, composite, clean, occluder, object_mask, synthesized)))
 
 
 def occluder_texels(atlas: np.ndarray, composite: np.ndarray, clean: np.ndarray, occluder: np.ndarray, object_mask: np.ndarray,
@@ -362,7 +357,9 @@ def _composite_row(plugins, family, mesh_id, index, composite: Composite, image,
         result = _reconstruct(plugins, family, composite.image, composite.visible, given, settings)
         row.update(_scores(result, gt, clean))
         row["detected_fraction"] = result.report.get("occlusion", {}).get("occluded_fraction", 0.0)
-        # Located and judged once; counted over the whole front half and on the model only.
+        # Located and judged once; counted over the whole front half and on the model only
+        # (``front_shown``: the rest pads the rim with the nearest silhouette colour, which next
+        # to an outline left unrebuilt may be a blend with the occluder).
         left = occluder_texels(result.textured.atlas, composite.image, image, composite.occluder, mask, result.textured.front_synthesized)
         row["occluder_pixels_left"] = int(np.count_nonzero(left))
         row["occluder_pixels_shown"] = int(np.count_nonzero(left & result.textured.front_shown))
