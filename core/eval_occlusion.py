@@ -50,7 +50,7 @@ DIFFERENT_COLOUR = 30
 PEOPLE_MODES = ("guitarist", "whole person")
 COMPOSITE_FIELDS = ("id", "composite", "occluder", "mode", "occluded_share", "rejected", "detected_fraction",
                     "occluder_pixels_left", "occluder_pixels_shown", *METRIC_KEYS, *(f"{k}_clean" for k in METRIC_KEYS), *(f"{k}_change" for k in METRIC_KEYS),
-                    *(f"{k}_true_mask" for k in METRIC_KEYS), "error")
+                    *(f"{k}_true_mask" for k in METRIC_KEYS), "subtype", "subtype_clean", "subtype_true_mask", "error")
 
 
 @dataclass
@@ -336,7 +336,8 @@ def run_occlusion_evaluation(family: str, meshes_dir: Path, renders_dir: Path, k
     for path, image, mask, index, composite in selected_composites(kind, paths, Path(renders_dir), per_object, seed, every, offset):
         if index == 0:
             gt = load_mesh(path)
-            clean = _scores(_reconstruct(plugins, family, image, mask, None, settings), gt)
+            clean_result = _reconstruct(plugins, family, image, mask, None, settings)
+            clean = {**_scores(clean_result, gt), "subtype": _subtype(clean_result)}
         rows.append(_composite_row(plugins, family, path.stem, index, composite, image, mask, gt, clean, kind, settings, out_dir))
         bar.update(1)
     bar.close()
@@ -356,6 +357,7 @@ def _composite_row(plugins, family, mesh_id, index, composite: Composite, image,
     try:
         result = _reconstruct(plugins, family, composite.image, composite.visible, given, settings)
         row.update(_scores(result, gt, clean))
+        row["subtype"], row["subtype_clean"] = _subtype(result), clean["subtype"]
         row["detected_fraction"] = result.report.get("occlusion", {}).get("occluded_fraction", 0.0)
         # Located and judged once; counted over the whole front half and on the model only
         # (``front_shown``: the rest pads the rim with the nearest silhouette colour, which next
@@ -369,11 +371,18 @@ def _composite_row(plugins, family, mesh_id, index, composite: Composite, image,
         row["error"] = f"{type(exc).__name__}: {exc}".splitlines()[0]
     if kind == "people":
         try:
-            truth = _scores(_reconstruct(plugins, family, composite.image, composite.visible, composite.occluder, settings), gt)
+            truth_result = _reconstruct(plugins, family, composite.image, composite.visible, composite.occluder, settings)
+            truth = _scores(truth_result, gt)
             row.update({f"{k}_true_mask": truth[k] for k in METRIC_KEYS})
+            row["subtype_true_mask"] = _subtype(truth_result)
         except Frontal3DError:
             pass  # rejected even with the true mask: no reference for this composite
     return row
+
+
+def _subtype(result) -> str:
+    """The subtype the classifier chain picked (a flip against the clean render is what costs most)."""
+    return next((d["label"] for d in result.report.get("decisions", []) if d["name"] == "subtype"), "")
 
 
 def _scores(result, gt, clean: dict | None = None) -> dict[str, float]:

@@ -105,7 +105,9 @@ def test_subtype_picks_the_matching_one_of_two_clearly_different_shapes():
     assert decision.confidence > 0.9 and decision.runner_up_confidence < 0.1
 
 
-def test_a_dark_sound_hole_decides_between_two_equal_silhouettes():
+def _equal_silhouettes() -> tuple[np.ndarray, dict[str, TemplateRenders], np.ndarray, tuple[int, int], int]:
+    """Two templates with the same outline, one with a sound hole; a plain photo of that outline,
+    and where (centre, radius) the placed template puts its hole."""
     size = 160
     body = np.zeros((size, size), np.uint8)
     cv2.ellipse(body, (80, 95), (55, 60), 0, 0, 360, 1, -1)
@@ -121,11 +123,31 @@ def test_a_dark_sound_hole_decides_between_two_equal_silhouettes():
     }
     photo_mask = _placed(mask, (320, 320), 1.8, 0.0)
     plain = np.where(photo_mask[..., None], np.array([190, 130, 70]), 235).astype(np.uint8)
+    return photo_mask, renders, plain, (160, 160 + round(1.8 * (75 - 79.5))), round(1.8 * 16)
+
+
+def test_a_dark_sound_hole_decides_between_two_equal_silhouettes():
+    photo_mask, renders, plain, centre, radius = _equal_silhouettes()
     assert SubtypeClassifier().classify(_context(photo_mask, renders, plain)).label == "electric"
     holed = plain.copy()
-    cv2.circle(holed, (160, 160 + round(1.8 * (75 - 79.5))), round(1.8 * 16), (25, 20, 15), -1)
+    cv2.circle(holed, centre, radius, (25, 20, 15), -1)
     decision = SubtypeClassifier().classify(_context(photo_mask, renders, holed))
     assert decision.label == "classical" and decision.runner_up == "electric"
+
+
+def test_a_hole_drawn_as_a_ring_counts_but_strings_across_the_spot_do_not():
+    """A hole painted in the body's colour shows only its outline (a drawing, a rosette): a
+    ring a little off the template's spot and larger decides for the classical template;
+    strings and a bridge line over the same spot (edges that step both ways) do not."""
+    photo_mask, renders, plain, (cx, cy), radius = _equal_silhouettes()
+    ringed = plain.copy()
+    cv2.circle(ringed, (cx + 6, cy - 5), round(1.15 * radius), (90, 60, 30), 2)
+    assert SubtypeClassifier().classify(_context(photo_mask, renders, ringed)).label == "classical"
+    strung = plain.copy()
+    for x in range(cx - 12, cx + 13, 5):
+        cv2.line(strung, (x, cy - 3 * radius), (x, cy + 3 * radius), (90, 60, 30), 1)
+    cv2.line(strung, (cx - radius, cy + 2 * radius), (cx + radius, cy + 2 * radius), (90, 60, 30), 2)
+    assert SubtypeClassifier().classify(_context(photo_mask, renders, strung)).label == "electric"
 
 
 @pytest.mark.parametrize("subtype", ["classical", "electric"])
