@@ -42,7 +42,8 @@ HOLE_WEIGHT = 0.08
 HOLE_DARKNESS = 25.0
 #: A circle near the template's hole spot with this share of its points on a lightness step
 #: of one sign across it is a round outline (a rosette, or a hole drawn in the body's colour):
-#: as good as a dark disc. The shared and synthetic electric bodies reach 0.38 and 0.76.
+#: as good as a dark disc. Electric bodies reach 0.36 on the shared renders, 0.57 on the two
+#: electric-guitar photos and 0.76 on synthetic samples; a drawn ring 1.00.
 HOLE_RIM_SHARE = 0.85
 #: Lab lightness change per pixel across such a circle that counts as a step.
 HOLE_RIM_STEP = 2.0
@@ -418,7 +419,8 @@ def _round_outline_near(lightness: np.ndarray, hole: np.ndarray, object_mask: np
     """Whether some circle near the ``hole`` spot crosses a lightness step of one sign on
     HOLE_RIM_SHARE of its points: a hole edge or a drawn ring, whose points all step the same
     way across it, where wood grain, strings and pickup edges step either way or along it.
-    Circles with points off the seen object are not judged (a person's arm may hide the hole)."""
+    Circles with over a tenth of their points off the seen object are not judged (a person's
+    arm may hide the hole)."""
     ys, xs = np.nonzero(hole)
     radius = float(np.sqrt(len(ys) / np.pi))
     smooth = cv2.GaussianBlur(lightness.astype(np.float32), (0, 0), 1.0)
