@@ -395,8 +395,10 @@ def _scores(result, gt, clean: dict | None = None) -> dict[str, float]:
 
 
 def summarize(rows: list[dict]) -> list[dict]:
-    """Per occluder mode and overall: counts, and the change of each metric's mean against the
-    same renders' unoccluded means (paired), for the detected run and the true-mask reference."""
+    """Per occluder mode and overall: counts, the change of each metric's mean against the
+    same renders' unoccluded means (paired), for the detected run and the true-mask reference,
+    and how many composites got another subtype than their unoccluded render (the costliest
+    failure: a classical guitar rebuilt as a thin electric one loses half its volume)."""
     groups: dict[str, list[dict]] = {"all": rows}
     for row in rows:
         groups.setdefault(row["mode"], []).append(row)
@@ -410,8 +412,10 @@ def summarize(rows: list[dict]) -> list[dict]:
                                 "occluder_pixels_shown": sum(r.get("occluder_pixels_shown", 0) for r in scored)}
         for key in METRIC_KEYS:
             line[f"{key}_change"] = _mean([r[key] for r in scored]) / _mean([r[f"{key}_clean"] for r in scored]) - 1.0 if scored else float("nan")
+        line["subtype_changed"] = sum(_subtype_changed(r, "subtype") for r in scored)
         referenced = [r for r in scored if "iou_true_mask" in r]
         line["true_mask_scored"] = len(referenced)
+        line["subtype_changed_true_mask"] = sum(_subtype_changed(r, "subtype_true_mask") for r in referenced)
         for key in METRIC_KEYS:
             line[f"{key}_change_true_mask"] = (_mean([r[f"{key}_true_mask"] for r in referenced]) / _mean([r[f"{key}_clean"] for r in referenced]) - 1.0) if referenced else float("nan")
         summary.append(line)
@@ -425,11 +429,17 @@ def summary_lines(summary: list[dict]) -> list[str]:
         changes = " / ".join(f"{100 * line[f'{k}_change']:+.1f}" for k in METRIC_KEYS)
         text = (f"{line['group']:<14} n={line['n']:<3} scored={line['scored']:<3} rejected={line['rejected']:<3} "
                 f"share={100 * line['occluded_share_mean']:.0f}%  change IoU/CD/F: {changes} %  occluder pixels left: {line['occluder_pixels_left']} "
-                f"(on the model: {line['occluder_pixels_shown']})")
+                f"(on the model: {line['occluder_pixels_shown']})  subtype changed: {line['subtype_changed']}")
         if line["true_mask_scored"]:
-            text += "  true mask: " + " / ".join(f"{100 * line[f'{k}_change_true_mask']:+.1f}" for k in METRIC_KEYS) + f" % (n={line['true_mask_scored']})"
+            text += ("  true mask: " + " / ".join(f"{100 * line[f'{k}_change_true_mask']:+.1f}" for k in METRIC_KEYS)
+                     + f" % (n={line['true_mask_scored']}, subtype changed: {line['subtype_changed_true_mask']})")
         lines.append(text)
     return lines
+
+
+def _subtype_changed(row: dict, key: str) -> bool:
+    """Whether the composite's ``key`` subtype is known and differs from its unoccluded render's."""
+    return bool(row.get(key)) and bool(row.get("subtype_clean")) and row[key] != row["subtype_clean"]
 
 
 def _mean(values: list[float]) -> float:

@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from frontal3d.eval_occlusion import OCCLUDED_SHARE, Cutout, arm_occluder, occluder_pixels_left, occluder_texels, paste_person, summarize
+from frontal3d.eval_occlusion import OCCLUDED_SHARE, Cutout, arm_occluder, occluder_pixels_left, occluder_texels, paste_person, summarize, summary_lines
 from frontal3d.errors import InputError
 
 
@@ -137,14 +137,19 @@ def test_a_made_up_texel_counts_only_when_the_object_shows_nowhere_its_colour():
 def test_the_summary_compares_means_with_the_same_renders_unoccluded():
     rows = [
         {"mode": "guitarist", "occluded_share": 0.2, "rejected": "", "iou": 0.45, "iou_clean": 0.5, "chamfer_l1": 0.11, "chamfer_l1_clean": 0.1,
-         "fscore": 0.8, "fscore_clean": 0.8, "occluder_pixels_left": 3},
+         "fscore": 0.8, "fscore_clean": 0.8, "occluder_pixels_left": 3, "iou_true_mask": 0.5, "chamfer_l1_true_mask": 0.1,
+         "fscore_true_mask": 0.8, "subtype": "electric", "subtype_clean": "classical", "subtype_true_mask": "classical"},
         {"mode": "whole person", "occluded_share": 0.1, "rejected": "not frontal", "occluder_pixels_left": 0},
     ]
-    overall = summarize(rows)[0]
+    summary = summarize(rows)
+    overall = summary[0]
     assert overall["n"] == 2 and overall["scored"] == 1 and overall["rejected"] == 1
     assert overall["iou_change"] == pytest.approx(-0.1)
     assert overall["chamfer_l1_change"] == pytest.approx(0.1)
     assert overall["occluder_pixels_left"] == 3
+    # the detected run took the classical guitar for an electric one; with the true mask it did not
+    assert overall["subtype_changed"] == 1 and overall["subtype_changed_true_mask"] == 0
+    assert "subtype changed: 1" in summary_lines(summary)[0] and "subtype changed: 0)" in summary_lines(summary)[0]
 
 
 def test_the_command_has_help_and_names_a_missing_input_in_one_line(tmp_path, capsys):
