@@ -423,21 +423,25 @@ def _round_outline_near(lightness: np.ndarray, hole: np.ndarray, object_mask: np
     arm may hide the hole)."""
     ys, xs = np.nonzero(hole)
     radius = float(np.sqrt(len(ys) / np.pi))
-    smooth = cv2.GaussianBlur(lightness.astype(np.float32), (0, 0), 1.0)
+    reach = HOLE_RIM_SHIFT * radius
+    height, width = lightness.shape
+    # Gradients only around the circles (blur and Sobel reach 5 px): a photo may be far larger.
+    span = int(np.ceil(reach + HOLE_RIM_RADII[1] * radius)) + 7
+    y0, y1 = max(0, int(ys.mean()) - span), min(height, int(ys.mean()) + span + 1)
+    x0, x1 = max(0, int(xs.mean()) - span), min(width, int(xs.mean()) + span + 1)
+    smooth = cv2.GaussianBlur(lightness[y0:y1, x0:x1].astype(np.float32), (0, 0), 1.0)
     gx = cv2.Sobel(smooth, cv2.CV_32F, 1, 0, ksize=3, scale=1.0 / 8.0)
     gy = cv2.Sobel(smooth, cv2.CV_32F, 0, 1, ksize=3, scale=1.0 / 8.0)
-    seen = object_mask if hidden is None else object_mask & ~hidden
+    seen = (object_mask if hidden is None else object_mask & ~hidden)[y0:y1, x0:x1]
     angles = np.linspace(0.0, 2.0 * np.pi, 96, endpoint=False)
     ux, uy = np.cos(angles), np.sin(angles)
-    reach = HOLE_RIM_SHIFT * radius
     offsets = np.arange(-reach, reach + 1e-6, max(1.0, 0.08 * radius))
     cy, cx = np.meshgrid(ys.mean() + offsets, xs.mean() + offsets, indexing="ij")
     cy, cx = cy.reshape(-1, 1), cx.reshape(-1, 1)
-    height, width = lightness.shape
     for r in np.arange(HOLE_RIM_RADII[0] * radius, HOLE_RIM_RADII[1] * radius + 1e-6, max(1.0, 0.05 * radius)):
         px, py = np.rint(cx + r * ux).astype(int), np.rint(cy + r * uy).astype(int)
         inside = (px >= 0) & (px < width) & (py >= 0) & (py < height)
-        px, py = np.clip(px, 0, width - 1), np.clip(py, 0, height - 1)
+        px, py = np.clip(px, 0, width - 1) - x0, np.clip(py, 0, height - 1) - y0
         judged = (inside & seen[py, px]).mean(axis=1) >= 0.9
         across = gx[py, px] * ux + gy[py, px] * uy
         along = np.abs(gy[py, px] * ux - gx[py, px] * uy)
