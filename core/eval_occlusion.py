@@ -225,12 +225,6 @@ def _px(point: np.ndarray) -> tuple[int, int]:
 # --------------------------------------------------------------------------- scoring
 
 
-def occluder_pixels_left(atlas: np.ndarray, composite: np.ndarray, clean: np.ndarray, occluder: np.ndarray, object_mask: np.ndarray,
-                         synthesized: np.ndarray | None = None) -> int:
-    """How many texture pixels inside the object are still the occluder's own pixels (:func:`occluder_texels`)."""
-    return int(np.count_nonzero(occluder_texels(atlas, composite, clean, occluder, object_mask, synthesized)))
-
-
 def occluder_texels(atlas: np.ndarray, composite: np.ndarray, clean: np.ndarray, occluder: np.ndarray, object_mask: np.ndarray,
                     synthesized: np.ndarray | None = None) -> np.ndarray:
     """The atlas front half's texels (h, w bool) inside the object that are still the occluder's own pixels.

@@ -151,7 +151,7 @@ def test_the_pipeline_rebuilds_a_car_behind_a_painted_arm():
     arm and hand reaching down onto its roof: the mesh stays closed and none of the arm's colour
     is left in the texture, not along its edge (finer than the grid) nor smeared into the
     rebuilt roof, a region with no visible pixel (157 such texels before)."""
-    from frontal3d.eval_occlusion import arm_occluder, occluder_pixels_left
+    from frontal3d.eval_occlusion import arm_occluder, occluder_texels
 
     image = cv2.cvtColor(cv2.imread(str(EXAMPLES / "sportscar.png"), cv2.IMREAD_UNCHANGED), cv2.COLOR_BGRA2RGBA)
     car = image[..., 3] > 127
@@ -166,7 +166,7 @@ def test_the_pipeline_rebuilds_a_car_behind_a_painted_arm():
     assert result.mesh.is_watertight
     assert result.maps["occlusion_mask"].any()
     textured = result.textured
-    assert occluder_pixels_left(textured.atlas, composite.image, image[..., :3], composite.occluder, car, textured.front_synthesized) == 0
+    assert np.count_nonzero(occluder_texels(textured.atlas, composite.image, image[..., :3], composite.occluder, car, textured.front_synthesized)) == 0
 
 
 def test_at_full_resolution_every_occluder_pixel_on_the_rebuilt_mask_is_inpainted():
