@@ -150,6 +150,29 @@ def test_a_hole_drawn_as_a_ring_counts_but_strings_across_the_spot_do_not():
     assert SubtypeClassifier().classify(_context(photo_mask, renders, strung)).label == "electric"
 
 
+def test_a_hole_spot_under_an_occluder_is_no_evidence_against_the_hole():
+    """The occluded pixels inside the object's outline count as object for the silhouettes, but
+    they show the occluder: a sleeve over the sound hole is not a plain top. The classical
+    template, a little closer to the outline, must keep its lead."""
+    from frontal3d.stages.occlusion import VisibleAgreementContext
+
+    photo_mask, renders, plain, centre, radius = _equal_silhouettes()
+    slimmer = np.zeros(renders["electric"].mask.shape, np.uint8)
+    cv2.ellipse(slimmer, (80, 95), (53, 60), 0, 0, 360, 1, -1)
+    cv2.rectangle(slimmer, (74, 5), (86, 60), 1, -1)
+    renders["electric"] = _renders_from_masks(slimmer > 0, np.where(slimmer > 0, 0, -1).astype(np.int32), ("body",))
+    image = plain.copy()
+    cv2.circle(image, centre, radius, (25, 20, 15), -1)
+    arm = np.zeros(photo_mask.shape, np.uint8)  # a sleeve across the hole, light as a plain top
+    cv2.rectangle(arm, (centre[0] - 3 * radius, centre[1] - 2 * radius), (centre[0] + 3 * radius, centre[1] + 2 * radius), 1, -1)
+    image[arm > 0] = (235, 200, 180)
+    fields = dict(image=image, object_mask=photo_mask, family=FAMILY, renders=renders, settings=SETTINGS)
+    unaware = SubtypeClassifier().classify(VisibleAgreementContext(**fields, hidden=None))
+    assert unaware.label == "electric"  # read as a plain top, the hole spot outweighs the silhouettes
+    decision = SubtypeClassifier().classify(VisibleAgreementContext(**fields, hidden=arm > 0))
+    assert decision.label == "classical" and decision.runner_up == "electric"
+
+
 @pytest.mark.parametrize("subtype", ["classical", "electric"])
 def test_the_chain_rejects_a_side_on_guitar_and_says_which_view_it_needs(subtype):
     import frontal3d

@@ -47,6 +47,8 @@ HOLE_DARKNESS = 25.0
 HOLE_RIM_SHARE = 0.85
 #: Lab lightness change per pixel across such a circle that counts as a step.
 HOLE_RIM_STEP = 2.0
+#: Share of the hole spot that must be seen (not under occluders or people) for the hole cue to judge it.
+HOLE_SEEN_SHARE = 0.3
 #: The circles tried: centres within half the hole's radius of the template's, radii 0.6-1.5 times it.
 HOLE_RIM_SHIFT = 0.5
 HOLE_RIM_RADII = (0.6, 1.5)
@@ -390,18 +392,24 @@ class SubtypeClassifier:
 
 def _hole_evidence(context: ClassifierContext, subtype: str) -> float:
     """In [-1, 1]: +1 when the template's hole lands on a dark disc or a round outline
-    (:func:`_round_outline_near`), -1 when on plain surface, 0 without a hole."""
+    (:func:`_round_outline_near`), -1 when on plain surface, 0 without a hole or when
+    occluders hide all but HOLE_SEEN_SHARE of the spot."""
     render = context.renders[subtype]
     if HOLE_REGION not in render.region_names:
         return 0.0
     hole_label = render.region_names.index(HOLE_REGION)
     regions = warp_labels(render.front_regions, context.subtype_agreement()[subtype].similarity, context.object_mask.shape)
-    hole = (regions == hole_label) & context.object_mask
-    if hole.sum() < 12:
+    spot = (regions == hole_label) & context.object_mask
+    hidden = context.view_hidden_pixels()
+    # Occluded pixels inside the object's hull count as object for the silhouettes, but
+    # what they show is the occluder (a dark jacket, a light face): no evidence either way.
+    seen = context.object_mask if hidden is None else context.object_mask & ~hidden
+    hole = spot & seen
+    if hole.sum() < max(12, HOLE_SEEN_SHARE * spot.sum()):
         return 0.0
-    radius = max(2, round(0.5 * np.sqrt(hole.sum() / np.pi)))
-    ring = (cv2.dilate(hole.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1,) * 2)) > 0)
-    ring &= ~hole & context.object_mask & (regions >= 0)
+    radius = max(2, round(0.5 * np.sqrt(spot.sum() / np.pi)))
+    ring = (cv2.dilate(spot.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1,) * 2)) > 0)
+    ring &= ~spot & seen & (regions >= 0)
     if ring.sum() < 12:
         return 0.0
     lightness = cv2.cvtColor(np.ascontiguousarray(context.image[..., :3], dtype=np.uint8), cv2.COLOR_RGB2LAB)[..., 0]
@@ -410,7 +418,7 @@ def _hole_evidence(context: ClassifierContext, subtype: str) -> float:
     # A sound hole fills its disc with dark and leaves the ring light; pickups or a
     # dark finish leave the ring dark too.
     evidence = float(np.clip(2.0 * (dark[hole].mean() - dark[ring].mean()) - 0.5, -1.0, 1.0))
-    if evidence < 1.0 and _round_outline_near(lightness, hole, context.object_mask, context.view_hidden_pixels()):
+    if evidence < 1.0 and _round_outline_near(lightness, spot, context.object_mask, hidden):
         return 1.0
     return evidence
 
