@@ -40,6 +40,8 @@ HOLE_REGION = "hole"
 HOLE_WEIGHT = 0.08
 #: Lab lightness drop, below the surrounding region's median, that counts as "dark".
 HOLE_DARKNESS = 25.0
+#: Share of the hole spot that must be seen (not under occluders or people) for the hole cue to judge it.
+HOLE_SEEN_SHARE = 0.3
 #: A circle near the template's hole spot with this share of its points on a lightness step
 #: of one sign across it is a round outline (a rosette, or a hole drawn in the body's colour):
 #: as good as a dark disc. Electric bodies reach 0.36 on the shared renders, 0.57 on the two
@@ -47,8 +49,6 @@ HOLE_DARKNESS = 25.0
 HOLE_RIM_SHARE = 0.85
 #: Lab lightness change per pixel across such a circle that counts as a step.
 HOLE_RIM_STEP = 2.0
-#: Share of the hole spot that must be seen (not under occluders or people) for the hole cue to judge it.
-HOLE_SEEN_SHARE = 0.3
 #: The circles tried: centres within half the hole's radius of the template's, radii 0.6-1.5 times it.
 HOLE_RIM_SHIFT = 0.5
 HOLE_RIM_RADII = (0.6, 1.5)
@@ -418,16 +418,16 @@ def _hole_evidence(context: ClassifierContext, subtype: str) -> float:
     # A sound hole fills its disc with dark and leaves the ring light; pickups or a
     # dark finish leave the ring dark too.
     evidence = float(np.clip(2.0 * (dark[hole].mean() - dark[ring].mean()) - 0.5, -1.0, 1.0))
-    if evidence < 1.0 and _round_outline_near(lightness, spot, context.object_mask, hidden):
+    if evidence < 1.0 and _round_outline_near(lightness, spot, seen):
         return 1.0
     return evidence
 
 
-def _round_outline_near(lightness: np.ndarray, hole: np.ndarray, object_mask: np.ndarray, hidden: np.ndarray | None) -> bool:
+def _round_outline_near(lightness: np.ndarray, hole: np.ndarray, seen: np.ndarray) -> bool:
     """Whether some circle near the ``hole`` spot crosses a lightness step of one sign on
     HOLE_RIM_SHARE of its points: a hole edge or a drawn ring, whose points all step the same
     way across it, where wood grain, strings and pickup edges step either way or along it.
-    Circles with over a tenth of their points off the seen object are not judged (a person's
+    Circles with over a tenth of their points off the ``seen`` object are not judged (a person's
     arm may hide the hole)."""
     ys, xs = np.nonzero(hole)
     radius = float(np.sqrt(len(ys) / np.pi))
@@ -440,7 +440,7 @@ def _round_outline_near(lightness: np.ndarray, hole: np.ndarray, object_mask: np
     smooth = cv2.GaussianBlur(lightness[y0:y1, x0:x1].astype(np.float32), (0, 0), 1.0)
     gx = cv2.Sobel(smooth, cv2.CV_32F, 1, 0, ksize=3, scale=1.0 / 8.0)
     gy = cv2.Sobel(smooth, cv2.CV_32F, 0, 1, ksize=3, scale=1.0 / 8.0)
-    seen = (object_mask if hidden is None else object_mask & ~hidden)[y0:y1, x0:x1]
+    seen = seen[y0:y1, x0:x1]
     angles = np.linspace(0.0, 2.0 * np.pi, 96, endpoint=False)
     ux, uy = np.cos(angles), np.sin(angles)
     offsets = np.arange(-reach, reach + 1e-6, max(1.0, 0.08 * radius))
