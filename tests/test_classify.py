@@ -128,11 +128,14 @@ def _equal_silhouettes() -> tuple[np.ndarray, dict[str, TemplateRenders], np.nda
 
 def test_a_dark_sound_hole_decides_between_two_equal_silhouettes():
     photo_mask, renders, plain, centre, radius = _equal_silhouettes()
-    assert SubtypeClassifier().classify(_context(photo_mask, renders, plain)).label == "electric"
+    plain_top = SubtypeClassifier().classify(_context(photo_mask, renders, plain))
+    assert plain_top.label == "electric" and "classical: silhouette agreement" in plain_top.reason
+    assert "hole cue -0.50" in plain_top.reason  # report.json says why the tie went to electric
     holed = plain.copy()
     cv2.circle(holed, centre, radius, (25, 20, 15), -1)
     decision = SubtypeClassifier().classify(_context(photo_mask, renders, holed))
     assert decision.label == "classical" and decision.runner_up == "electric"
+    assert decision.reason.startswith("classical: silhouette agreement") and "hole cue +1.00" in decision.reason
 
 
 def test_a_hole_drawn_as_a_ring_counts_but_strings_across_the_spot_do_not():

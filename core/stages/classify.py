@@ -375,19 +375,26 @@ class SubtypeClassifier:
     def classify(self, context: ClassifierContext) -> Decision:
         agreement = context.subtype_agreement()
         names = list(agreement)
-        scores = np.array([agreement[n].iou + HOLE_WEIGHT * _hole_evidence(context, n) for n in names])
+        holes = {n: _hole_evidence(context, n) for n in names}
+        scores = np.array([agreement[n].iou + HOLE_WEIGHT * holes[n] for n in names])
         weights = np.exp((scores - scores.max()) / SUBTYPE_TEMPERATURE)
         confidences = weights / weights.sum()
         order = np.argsort(-confidences, kind="stable")
         best = names[order[0]]
         runner_up = names[order[1]] if len(names) > 1 else None
-        reason = f"{best}: silhouette agreement {agreement[best].iou:.2f}" + (
-            f", {runner_up}: {agreement[runner_up].iou:.2f}" if runner_up else ""
+        reason = f"{best}: {_evidence_words(agreement[best].iou, holes[best])}" + (
+            f"; {runner_up}: {_evidence_words(agreement[runner_up].iou, holes[runner_up])}" if runner_up else ""
         )
         return Decision(
             name=self.name, label=best, confidence=float(confidences[order[0]]), reason=reason,
             runner_up=runner_up, runner_up_confidence=float(confidences[order[1]]) if runner_up else None,
         )
+
+
+def _evidence_words(iou: float, hole: float) -> str:
+    """One subtype's evidence for report.json: the hole cue is named when it voted, so a
+    pick it decided between near-equal silhouettes does not read as a tie."""
+    return f"silhouette agreement {iou:.2f}" + (f", hole cue {hole:+.2f}" if hole else "")
 
 
 def _hole_evidence(context: ClassifierContext, subtype: str) -> float:
