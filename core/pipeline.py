@@ -9,6 +9,7 @@ stage and collects the decisions and warnings into ``report.json``.
 from __future__ import annotations
 
 import copy
+import functools
 import logging
 import resource
 import time
@@ -41,9 +42,11 @@ PEOPLE_REACH = 0.25
 #: How much longer than the shortest way between a piece a person cut off and the object a
 #: path through the gap may be and still lie under the person (pipeline._gaps_to).
 GAP_SLACK = 1.2
-#: What must vouch for a person before the outline next to them stops voting on the template
-#: placement that judges who stands in front (see _people_in_front); the segmenter alone is
-#: as sure of some soft blobs beside objects, whose freed outline lets the placement drift.
+#: The outline next to people stops voting on the template placement that judges who stands
+#: in front (see _people_in_front). The segmenter alone is as sure of some soft blobs beside
+#: objects, whose freed outline can let the placement drift until the gate calls a clean
+#: object turned: with only its word for a person, an object the gate turns down is judged
+#: again with that outline voting. With a pose or a face the verdict stands.
 TRUSTED_PEOPLE_EVIDENCE = ("pose", "face")
 
 
@@ -189,7 +192,7 @@ def _reconstruct_objects(image: np.ndarray | str | Path, family: str | None, mas
     chosen: tuple[Family, dict[str, Any], list[_Accepted], list[tuple[int, str]], int] | None = None
     rejections: list[str] = []
     people: np.ndarray | None = None
-    people_evidence: list[str] = []
+    people_evidence: str | None = None
     for index, fam in enumerate(candidates):
         fam_settings = plugins.settings(fam.name, settings)
         with report.stage(f"segment[{fam.name}]" if several_families else "segment", progress):
@@ -204,14 +207,13 @@ def _reconstruct_objects(image: np.ndarray | str | Path, family: str | None, mas
         accepted: list[_Accepted] = []
         turned_down: list[tuple[int, NotFrontalError]] = []
         for rank, object_mask in enumerate(segmentation.objects):
-            trial = copy.deepcopy(report)
-            with trial.stage(f"classify[{fam.name}]" if several_families else "classify", progress):
-                try:
-                    accepted.append(_judge_object(plugins, rgb, fam, fam_settings, subtype, rank, object_mask, segmentation,
-                                                  people, people_evidence in TRUSTED_PEOPLE_EVIDENCE, trial))
-                except NotFrontalError as exc:
-                    turned_down.append((rank, exc))
-                    continue
+            judge = functools.partial(_judge_object, plugins, rgb, fam, fam_settings, subtype, rank, object_mask, segmentation, people)
+            stage = f"classify[{fam.name}]" if several_families else "classify"
+            try:
+                accepted.append(_judged_freeing_people(judge, people_evidence, report, stage, progress))
+            except NotFrontalError as exc:
+                turned_down.append((rank, exc))
+                continue
             if not every:
                 break
         if not accepted:
@@ -237,15 +239,34 @@ def _reconstruct_objects(image: np.ndarray | str | Path, family: str | None, mas
     return results
 
 
+def _judged_freeing_people(judge: Callable[[bool, Report], _Accepted], evidence: str | None, report: Report, stage: str,
+                           progress: Callable[[str], None] | None) -> _Accepted:
+    """``judge(free_outline, trial_report)`` with the outline next to people freed, and when only
+    the segmenter vouches for them and the gate turns the object down, again with that outline
+    voting (see :data:`TRUSTED_PEOPLE_EVIDENCE`). Each try writes into its own copy of ``report``."""
+    def attempt(free_outline: bool) -> _Accepted:
+        trial = copy.deepcopy(report)
+        with trial.stage(stage, progress):
+            return judge(free_outline, trial)
+
+    try:
+        return attempt(bool(evidence))
+    except NotFrontalError:
+        if not evidence or evidence in TRUSTED_PEOPLE_EVIDENCE:
+            raise
+    return attempt(False)
+
+
 def _judge_object(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dict[str, Any], subtype: str | None, rank: int,
-                  object_mask: np.ndarray, segmentation: Segmentation, people: np.ndarray | None, trusted_people: bool,
+                  object_mask: np.ndarray, segmentation: Segmentation, people: np.ndarray | None, free_outline: bool,
                   report: Report) -> _Accepted:
-    """Run the classifier chain on one of the separate objects; raises :class:`NotFrontalError`."""
+    """Run the classifier chain on one of the separate objects; raises :class:`NotFrontalError`.
+    ``free_outline``: see :func:`_people_in_front` and :data:`TRUSTED_PEOPLE_EVIDENCE`."""
     # People touching the object may stand in front of it or behind it: the template
     # placed on the object tells which, here for the classifiers and the alignment,
     # and again once aligned (occlusion stage).
     object_mask, people_near, occluders = _with_people_judged(
-        plugins, fam, settings, subtype, object_mask, segmentation.segmented, people, segmentation.occluders, trusted=trusted_people)
+        plugins, fam, settings, subtype, object_mask, segmentation.segmented, people, segmentation.occluders, free_outline=free_outline)
     touching = _touching(occluders, object_mask)
     probable = _probable_shape(object_mask, touching)
     hidden = occlusion.hidden_by(touching, object_mask) if touching.any() else None
@@ -549,18 +570,18 @@ def _pieces_across_occluders(found: np.ndarray, occluders: np.ndarray | None, ch
 
 def _with_people_judged(plugins: Plugins, fam: Family, settings: dict[str, Any], subtype: str | None, object_mask: np.ndarray,
                         segmented: np.ndarray, people: np.ndarray | None, occluders: np.ndarray | None,
-                        trusted: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+                        free_outline: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """The object mask, the people touching it and the occluders once those people are judged
-    in front or behind (:func:`_people_in_front`; ``trusted``: a pose or a face vouches for
-    them). Pieces a person in front cut off join the object, which is then judged again, and
-    the gap to each such piece counts as in front too."""
+    in front or behind (:func:`_people_in_front`, with ``free_outline``). Pieces a person in
+    front cut off join the object, which is then judged again, and the gap to each such piece
+    counts as in front too."""
     people_near = _touching(people, object_mask)
     if not people_near.any():
         return object_mask, people_near, occluders
 
     def in_front_of(mask: np.ndarray, near: np.ndarray) -> np.ndarray:
         probable = _probable_shape(mask, _touching(occluders, mask))
-        return _people_in_front(plugins, fam, settings, subtype, mask, probable, near, free_outline=trusted)
+        return _people_in_front(plugins, fam, settings, subtype, mask, probable, near, free_outline=free_outline)
 
     in_front = in_front_of(object_mask, people_near)
     bridged = _pieces_across_people(segmented, people, in_front, object_mask) if in_front.any() else in_front

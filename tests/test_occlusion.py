@@ -613,27 +613,44 @@ def test_the_template_judging_who_is_in_front_is_placed_on_the_outline_away_from
     assert not judged(guitar, body_behind, free_outline=True).any()
 
 
-def test_only_a_pose_or_a_face_frees_the_outline_next_to_people(monkeypatch):
-    """The segmenter alone is as sure of soft blobs beside objects as of people: such a "person"
-    must not free the outline the template is placed on (a clean car would then look turned)."""
+def test_a_person_only_the_segmenter_vouches_for_is_judged_again_when_the_gate_turns_the_object_down(monkeypatch):
+    """The outline next to people is freed for every person, but the segmenter alone is as sure
+    of soft blobs beside objects as of people, and a freed outline can let a clean car's fit drift
+    until the gate calls it turned. With only the segmenter's word, a turned-down object is judged
+    again with that outline voting and the second verdict stands; with a pose or a face the first
+    verdict stands."""
     from frontal3d import pipeline
+    from frontal3d.errors import NotFrontalError
 
     image, guitar = _drawn_guitar((240, 240))
     person = np.zeros(guitar.shape, bool)
     person[150:, 130:] = True
     person &= ~guitar
-    judged = {}
+    freed: list[bool] = []
+    real_people_in_front, real_classifiers = pipeline._people_in_front, pipeline.run_classifiers
 
-    def record_and_stop(*args, free_outline=False):
-        judged["free_outline"] = free_outline
-        raise _StopAfterPeople
+    def recorded(*args, free_outline=False):
+        freed.append(free_outline)
+        return real_people_in_front(*args, free_outline=free_outline)
 
-    monkeypatch.setattr(pipeline, "_people_in_front", record_and_stop)
-    for evidence, freed in (("pose", True), ("face", True), ("segmenter", False)):
+    def drifted_when_freed(*args, **kwargs):  # the gate's verdict on a placement the blob pulled away
+        if freed[-1]:
+            raise NotFrontalError("the guitar looks turned")
+        return real_classifiers(*args, **kwargs)
+
+    monkeypatch.setattr(pipeline, "_people_in_front", recorded)
+    monkeypatch.setattr(pipeline, "run_classifiers", drifted_when_freed)
+    for evidence in ("pose", "face"):
+        freed.clear()
         monkeypatch.setattr(occluders, "detect_people_with_evidence", lambda rgb, mask=None: (person, evidence))
-        with pytest.raises(_StopAfterPeople):
+        with pytest.raises(NotFrontalError):
             frontal3d.reconstruct(image, "guitar", mask=guitar)
-        assert judged["free_outline"] is freed, evidence
+        assert freed and all(freed), evidence
+    freed.clear()
+    monkeypatch.setattr(occluders, "detect_people_with_evidence", lambda rgb, mask=None: (person, "segmenter"))
+    result = frontal3d.reconstruct(image, "guitar", mask=guitar)
+    assert freed[0] and not freed[-1]
+    assert result.mesh.is_watertight and result.report["people_found_by"] == "segmenter"
 
 
 def test_a_person_beside_the_object_does_not_count_against_the_front_view():
