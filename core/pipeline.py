@@ -243,18 +243,22 @@ def _judged_freeing_people(judge: Callable[[bool, Report], _Accepted], evidence:
                            progress: Callable[[str], None] | None) -> _Accepted:
     """``judge(free_outline, trial_report)`` with the outline next to people freed, and when only
     the segmenter vouches for them and the gate turns the object down, again with that outline
-    voting (see :data:`TRUSTED_PEOPLE_EVIDENCE`). Each try writes into its own copy of ``report``."""
-    def attempt(free_outline: bool) -> _Accepted:
+    voting (see :data:`TRUSTED_PEOPLE_EVIDENCE`). Each try writes into its own copy of ``report``;
+    the second says why it ran (``people_judged_again``)."""
+    def attempt(free_outline: bool, why: str | None = None) -> _Accepted:
         trial = copy.deepcopy(report)
+        if why:
+            trial.data["people_judged_again"] = why
         with trial.stage(stage, progress):
             return judge(free_outline, trial)
 
     try:
         return attempt(bool(evidence))
-    except NotFrontalError:
+    except NotFrontalError as exc:
         if not evidence or evidence in TRUSTED_PEOPLE_EVIDENCE:
             raise
-    return attempt(False)
+        why = f"with the outline next to a person only the segmenter found left out: {exc}; judged again with it"
+    return attempt(False, why)
 
 
 def _judge_object(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dict[str, Any], subtype: str | None, rank: int,

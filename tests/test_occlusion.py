@@ -651,6 +651,7 @@ def test_a_person_only_the_segmenter_vouches_for_is_judged_again_when_the_gate_t
     result = frontal3d.reconstruct(image, "guitar", mask=guitar)
     assert freed[0] and not freed[-1]
     assert result.mesh.is_watertight and result.report["people_found_by"] == "segmenter"
+    assert "looks turned" in result.report["people_judged_again"]  # report.json says why
 
 
 def test_a_person_beside_the_object_does_not_count_against_the_front_view():
