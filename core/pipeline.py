@@ -209,8 +209,11 @@ def _reconstruct_objects(image: np.ndarray | str | Path, family: str | None, mas
         for rank, object_mask in enumerate(segmentation.objects):
             judge = functools.partial(_judge_object, plugins, rgb, fam, fam_settings, subtype, rank, object_mask, segmentation, people)
             stage = f"classify[{fam.name}]" if several_families else "classify"
+            # Without people's pixels beside the object there is no outline to free, and a
+            # second judgement would repeat the first.
+            beside = (_touching(people, object_mask) & ~object_mask).any()
             try:
-                accepted.append(_judged_freeing_people(judge, people_evidence, report, stage, progress))
+                accepted.append(_judged_freeing_people(judge, people_evidence if beside else None, report, stage, progress))
             except NotFrontalError as exc:
                 turned_down.append((rank, exc))
                 continue
@@ -243,8 +246,9 @@ def _judged_freeing_people(judge: Callable[[bool, Report], _Accepted], evidence:
                            progress: Callable[[str], None] | None) -> _Accepted:
     """``judge(free_outline, trial_report)`` with the outline next to people freed, and when only
     the segmenter vouches for them and the gate turns the object down, again with that outline
-    voting (see :data:`TRUSTED_PEOPLE_EVIDENCE`). Each try writes into its own copy of ``report``;
-    the second says why it ran (``people_judged_again``)."""
+    voting (see :data:`TRUSTED_PEOPLE_EVIDENCE`). ``evidence``: what vouched for the people beside
+    the object, None when there are none. Each try writes into its own copy of ``report``; the
+    second says why it ran (``people_judged_again``)."""
     def attempt(free_outline: bool, why: str | None = None) -> _Accepted:
         trial = copy.deepcopy(report)
         if why:
