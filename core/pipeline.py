@@ -274,7 +274,8 @@ def _judge_object(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dict
     # placed on the object tells which, here for the classifiers and the alignment,
     # and again once aligned (occlusion stage).
     object_mask, people_near, occluders = _with_people_judged(
-        plugins, fam, settings, subtype, object_mask, segmentation.segmented, people, segmentation.occluders, free_outline=free_outline)
+        plugins, fam, settings, subtype, object_mask, segmentation.segmented, people,
+        _without_people_off_object(segmentation.occluders, people, object_mask, segmentation.user_occluders), free_outline=free_outline)
     touching = _touching(occluders, object_mask)
     probable = _probable_shape(object_mask, touching)
     hidden = occlusion.hidden_by(touching, object_mask) if touching.any() else None
@@ -459,6 +460,7 @@ class Segmentation(NamedTuple):
     objects: list[np.ndarray]
     occluders: np.ndarray | None
     segmented: np.ndarray
+    user_occluders: np.ndarray | None = None
 
     @property
     def object_mask(self) -> np.ndarray:
@@ -480,7 +482,7 @@ def segment_object(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dic
     if settings["shape_prior"] and report.data["segmenter"] == "GrabCut (training-free)":
         # The largest only (2-4 s each): the others are judged only when it is turned down or with --all.
         objects[0] = _refine_with_templates(plugins, rgb, objects[0], occluders, fam, settings, subtype, report)
-    return Segmentation(objects, occluders, found)
+    return Segmentation(objects, occluders, found, user_occluders)
 
 
 def _segment(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dict[str, Any], user_mask: np.ndarray | None, report: Report) -> np.ndarray:
@@ -601,6 +603,22 @@ def _with_people_judged(plugins: Plugins, fam: Family, settings: dict[str, Any],
     if in_front.any():
         occluders = in_front if occluders is None else occluders | in_front
     return object_mask, people_near, occluders
+
+
+def _without_people_off_object(occluders: np.ndarray | None, people: np.ndarray | None, object_mask: np.ndarray,
+                               user_occluders: np.ndarray | None) -> np.ndarray | None:
+    """The occluders less the detected ones on people's pixels off the object: a pose model
+    draws a guitarist's arms whether they are in front of the object or behind it, and an arm
+    band beside the object would hide the outline it borders. Those pixels are judged with the
+    rest of the person (:func:`_people_in_front`: in front where the placed template expects
+    the object). Detected pixels on the object (judged by colour) and the user's stand."""
+    if occluders is None or people is None:
+        return occluders
+    judged = people & ~object_mask
+    if user_occluders is not None:
+        judged &= ~user_occluders
+    kept = occluders & ~judged
+    return kept if kept.any() else None
 
 
 def _pieces_across_people(segmented: np.ndarray, people: np.ndarray, in_front: np.ndarray, object_mask: np.ndarray) -> np.ndarray:

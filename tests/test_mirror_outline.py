@@ -153,3 +153,25 @@ def test_a_person_biting_a_bout_the_templates_cutaway_fits_is_still_in_front():
     bite = truth & person
     assert (found & bite).sum() > 0.9 * bite.sum()
     assert not (found & ~person).any()
+
+
+def test_a_neck_beyond_the_seen_body_keeps_the_templates_guess():
+    """A person hides a guitar's neck and the top of its body; the seen lower body is symmetric
+    and the template's neck leans 4° off the body's mirror line. Where the mirror line has no
+    seen object beside it, it cannot judge: the template's neck stays (a reflection a few
+    degrees off swings the neck's mirror image off the neck, onto seen background)."""
+    shape = (400, 300)
+    body = np.zeros(shape, np.uint8)
+    cv2.ellipse(body, (150, 300), (80, 70), 0, 0, 360, 1, -1)
+    template = np.zeros(shape, np.uint8)
+    cv2.ellipse(template, (150, 300), (88, 64), 0, 0, 360, 1, -1)  # a body unlike the object's: the mirror is used
+    top, a = np.array([150.0, 300.0]) + 240 * np.array([np.sin(np.deg2rad(4)), -1.0]), (150, 300)
+    cv2.line(template, a, (round(top[0]), round(top[1])), 1, 16)
+    person = (np.indices(shape)[0] < 265) & (cv2.dilate(template, np.ones((17, 17), np.uint8)) > 0)
+    visible = (body > 0) & ~person
+
+    rebuilt = rebuild_silhouette(visible, person, template > 0, mirror_axis=0.0)
+
+    assert rebuilt.summary()["mirror"]["used"]
+    neck_top = rebuilt.mask[60:140]
+    assert neck_top.sum() > 0.8 * (template[60:140] > 0).sum()  # 27 % when the mirror judged beyond the body

@@ -419,6 +419,29 @@ def test_a_person_behind_the_object_leaves_no_colour_on_its_texture(monkeypatch)
     assert not (magenta & result.textured.front_shown).any()  # 510 texels when taken from the photo
 
 
+def test_an_arm_band_beside_the_object_on_a_person_behind_it_is_judged_with_the_person(monkeypatch):
+    """A pose model draws a guitarist's arms whether they are in front of the guitar or behind
+    it. An arm band on the person's pixels beside the guitar, off it, is judged with the rest of
+    the person (here behind: the template does not reach under it), so the outline it borders
+    stays the one seen. The same band given by the user is an occluder as given."""
+    from frontal3d import pipeline
+
+    image, guitar = _drawn_guitar((720, 720))
+    body = np.zeros(guitar.shape, bool)
+    body[330:, 150:570] = True
+    body &= ~guitar
+    image[body] = (255, 0, 255)
+    arm = body & (cv2.dilate(guitar.astype(np.uint8), np.ones((41, 41), np.uint8)) > 0) & (np.indices(guitar.shape)[0] > 450)
+    monkeypatch.setattr(pipeline.people_detector, "detect_people_with_evidence", lambda rgb, object_mask=None: (body, "pose"))
+    monkeypatch.setattr(occluders, "detect_arms_and_hands", lambda image, object_mask=None: arm)
+
+    detected = frontal3d.reconstruct(image, "guitar", mask=guitar)
+    assert detected.report["occlusion"]["occluded_fraction"] == 0  # 0.06 when the band was trusted
+    assert detected.report["occlusion"]["rebuilt_boundary_parts"] == []
+    given = frontal3d.reconstruct(image, "guitar", mask=guitar, occluder_mask=arm)
+    assert given.report["occlusion"]["occluded_fraction"] > 0
+
+
 def test_the_person_segmenter_alone_finds_nobody_without_a_pose(monkeypatch):
     """Selfie segmenters also fire on plain objects (a guitar's body): without a body pose there is no person."""
     blob = _ellipse((120, 120), (60, 60), (30, 40))

@@ -113,13 +113,16 @@ def find_mirror_line(visible: np.ndarray, unknown: np.ndarray, template_mask: np
 def mirror_filled(rebuilt: np.ndarray, visible: np.ndarray, unknown: np.ndarray, occluders: np.ndarray, line: MirrorLine) -> np.ndarray:
     """The rebuilt mask with the template's guess replaced by the object's mirror image wherever that is seen.
 
-    The template's restored pixels stay only where the mirror image is hidden too; the
-    mirror image adds pixels only under the occluders (one pixel of slack), never on what
-    the image shows as background.
+    The template's restored pixels stay where the mirror image is hidden too, and beyond the
+    seen object's span along the line, where the mirror cannot say: a neck above a body whose
+    top a person hides has its mirror image on itself only if the line runs exactly along it
+    (a degree off, it swings off the neck onto seen background). The mirror image adds
+    pixels only under the occluders (one pixel of slack), never on what the image shows as
+    background.
     """
     visible = np.asarray(visible, dtype=bool)
     mirror_unknown = reflected(unknown, line.matrix, outside=True)
-    restored_by_template = np.asarray(rebuilt, dtype=bool) & ~visible & mirror_unknown
+    restored_by_template = np.asarray(rebuilt, dtype=bool) & ~visible & (mirror_unknown | ~_within_seen_span(visible, line.matrix))
     under_occluders = cv2.dilate(np.asarray(occluders, dtype=np.uint8), np.ones((3, 3), np.uint8)) > 0
     mirrored = reflected(visible, line.matrix) & ~mirror_unknown & under_occluders
     joined = visible | restored_by_template | mirrored
@@ -127,6 +130,17 @@ def mirror_filled(rebuilt: np.ndarray, visible: np.ndarray, unknown: np.ndarray,
     _count, pieces = cv2.connectedComponents(joined.astype(np.uint8))
     keep = np.unique(pieces[visible & (pieces > 0)])
     return binary_fill_holes(np.isin(pieces, keep) | visible)
+
+
+def _within_seen_span(visible: np.ndarray, matrix: np.ndarray) -> np.ndarray:
+    """Pixels whose position along the mirror line lies within the seen object's."""
+    linear = np.asarray(matrix)[:, :2]
+    values, vectors = np.linalg.eigh((linear + linear.T) / 2)
+    direction = vectors[:, int(np.argmax(values))]  # a reflection keeps its line's direction (eigenvalue +1)
+    rows, cols = np.indices(visible.shape)
+    along = cols * direction[0] + rows * direction[1]
+    seen = along[visible]
+    return (along >= seen.min()) & (along <= seen.max())
 
 
 def _found_on_smaller_grid(visible: np.ndarray, unknown: np.ndarray, template_mask: np.ndarray, axis: float) -> MirrorLine | None:
