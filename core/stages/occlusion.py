@@ -154,6 +154,8 @@ def in_front(people: np.ndarray, object_mask: np.ndarray, aligned_template_mask:
     so is a body behind an object slimmer than the template (a bass against an electric
     template), seen only in a band along the outline: what stands in front must hide a
     stretch at least twice IN_FRONT_DEPTH across, in pieces of at least IN_FRONT_MIN_AREA.
+    The template's own slender parts (a neck), which no depth test can pass, are in front
+    where a person over them joins such a piece.
     People's pixels on the object (a held guitar the segmenter counts as the person) stay object.
     With ``mirror_axis`` (the placed template's mirror line) the object's own mirror image
     also expects the object, where it matches the seen object better than the template
@@ -186,7 +188,13 @@ def in_front(people: np.ndarray, object_mask: np.ndarray, aligned_template_mask:
     kept = claimed & (cv2.dilate(deep, depth) > 0)
     count, kept_pieces, stats, _centroids = cv2.connectedComponentsWithStats(kept.astype(np.uint8), connectivity=8)
     large = 1 + np.flatnonzero(stats[1:count, cv2.CC_STAT_AREA] >= IN_FRONT_MIN_AREA * size * size)
-    return np.isin(kept_pieces, large)
+    found = np.isin(kept_pieces, large)
+    # A person over a neck covers it on one side only next to the body: without this the
+    # rebuilt outline stops at a gap there and the neck is lost.
+    slender = (template > 0) & (cv2.morphologyEx(template, cv2.MORPH_OPEN, depth) == 0) & off_object & (people | inside)
+    _count, slender_pieces = cv2.connectedComponents(slender.astype(np.uint8), connectivity=8)
+    joined = np.unique(slender_pieces[(cv2.dilate(found.astype(np.uint8), _disc(1)) > 0) & slender])
+    return found | np.isin(slender_pieces, joined[joined > 0])
 
 
 @dataclass
