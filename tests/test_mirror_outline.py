@@ -165,8 +165,8 @@ def test_a_neck_beyond_the_seen_body_keeps_the_templates_guess():
     cv2.ellipse(body, (150, 300), (80, 70), 0, 0, 360, 1, -1)
     template = np.zeros(shape, np.uint8)
     cv2.ellipse(template, (150, 300), (88, 64), 0, 0, 360, 1, -1)  # a body unlike the object's: the mirror is used
-    top, a = np.array([150.0, 300.0]) + 240 * np.array([np.sin(np.deg2rad(4)), -1.0]), (150, 300)
-    cv2.line(template, a, (round(top[0]), round(top[1])), 1, 16)
+    top = np.array([150.0, 300.0]) + 240 * np.array([np.sin(np.deg2rad(4)), -1.0])  # the neck, from the body's centre
+    cv2.line(template, (150, 300), (round(top[0]), round(top[1])), 1, 16)
     person = (np.indices(shape)[0] < 265) & (cv2.dilate(template, np.ones((17, 17), np.uint8)) > 0)
     visible = (body > 0) & ~person
 
