@@ -192,9 +192,7 @@ def in_front(people: np.ndarray, object_mask: np.ndarray, aligned_template_mask:
     # A person over a neck covers it on one side only next to the body: without this the
     # rebuilt outline stops at a gap there and the neck is lost.
     slender = (template > 0) & (cv2.morphologyEx(template, cv2.MORPH_OPEN, depth) == 0) & off_object & (people | inside)
-    _count, slender_pieces = cv2.connectedComponents(slender.astype(np.uint8), connectivity=8)
-    joined = np.unique(slender_pieces[(cv2.dilate(found.astype(np.uint8), _disc(1)) > 0) & slender])
-    return found | np.isin(slender_pieces, joined[joined > 0])
+    return found | _pieces_touching(slender, found)
 
 
 @dataclass
@@ -341,11 +339,16 @@ def _disc(radius: int) -> np.ndarray:
 def _filled(visible: np.ndarray, template_near_occluders: np.ndarray, kernel: np.ndarray, reach: np.ndarray) -> np.ndarray:
     """Visible object plus the template pieces under occluders that touch it, closed within the
     occluders' reach (the outline elsewhere, a headstock's tuner gaps, is seen) and hole-free (paper Fig. 5)."""
-    _count, pieces = cv2.connectedComponents(template_near_occluders.astype(np.uint8))
-    touching = np.unique(pieces[(cv2.dilate(visible.astype(np.uint8), _disc(1)) > 0) & (pieces > 0)])
-    joined = visible | np.isin(pieces, touching)
+    joined = visible | _pieces_touching(template_near_occluders, visible)
     closed = cv2.morphologyEx(joined.astype(np.uint8), cv2.MORPH_CLOSE, kernel) > 0
     return binary_fill_holes(joined | (closed & reach))
+
+
+def _pieces_touching(mask: np.ndarray, other: np.ndarray) -> np.ndarray:
+    """The 8-connected pieces of ``mask`` that touch ``other`` (lie within one pixel of it)."""
+    _count, pieces = cv2.connectedComponents(np.asarray(mask, dtype=np.uint8), connectivity=8)
+    touching = np.unique(pieces[(cv2.dilate(np.asarray(other, dtype=np.uint8), _disc(1)) > 0) & (pieces > 0)])
+    return np.isin(pieces, touching)
 
 
 def _values_at(mask: np.ndarray, points: np.ndarray) -> np.ndarray:
