@@ -273,9 +273,13 @@ def _judge_object(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dict
     # People touching the object may stand in front of it or behind it: the template
     # placed on the object tells which, here for the classifiers and the alignment,
     # and again once aligned (occlusion stage).
+    own_occluders = _without_people_off_object(segmentation.occluders, people, object_mask, segmentation.user_occluders)
+    if own_occluders is not segmentation.occluders:
+        judged = np.count_nonzero(segmentation.occluders) - (0 if own_occluders is None else np.count_nonzero(own_occluders))
+        if judged:
+            report.data["detected_occluder_pixels_judged_with_people"] = int(judged)
     object_mask, people_near, occluders = _with_people_judged(
-        plugins, fam, settings, subtype, object_mask, segmentation.segmented, people,
-        _without_people_off_object(segmentation.occluders, people, object_mask, segmentation.user_occluders), free_outline=free_outline)
+        plugins, fam, settings, subtype, object_mask, segmentation.segmented, people, own_occluders, free_outline=free_outline)
     touching = _touching(occluders, object_mask)
     probable = _probable_shape(object_mask, touching)
     hidden = occlusion.hidden_by(touching, object_mask) if touching.any() else None

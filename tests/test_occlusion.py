@@ -438,6 +438,7 @@ def test_an_arm_band_beside_the_object_on_a_person_behind_it_is_judged_with_the_
     detected = frontal3d.reconstruct(image, "guitar", mask=guitar)
     assert detected.report["occlusion"]["occluded_fraction"] == 0  # 0.06 when the band was trusted
     assert detected.report["occlusion"]["rebuilt_boundary_parts"] == []
+    assert detected.report["detected_occluder_pixels_judged_with_people"] == np.count_nonzero(arm)  # the report says why
     given = frontal3d.reconstruct(image, "guitar", mask=guitar, occluder_mask=arm)
     assert given.report["occlusion"]["occluded_fraction"] > 0
 
