@@ -48,6 +48,10 @@ GAP_SLACK = 1.2
 #: object turned: with only its word for a person, an object the gate turns down is judged
 #: again with that outline voting. With a pose or a face the verdict stands.
 TRUSTED_PEOPLE_EVIDENCE = ("pose", "face")
+#: The template judging who stands in front is also placed with the outline next to people
+#: voting; when the two placements turn more than this apart (degrees), one has been dragged
+#: across people, and the one whose long axis lies along the object's stands (_people_in_front).
+MAX_FREED_TURN_DEG = 20.0
 
 
 @dataclass
@@ -689,14 +693,34 @@ def _people_in_front(plugins: Plugins, fam: Family, settings: dict[str, Any], su
 
     With ``free_outline`` the outline next to the people's pixels off the object does not
     vote on that placement: it may be a person's edge (beside, behind or in front), which
-    would drag the template towards the person."""
+    would drag the template towards the person. But where people surround the object, hardly
+    any outline is left to vote, and the freed template can turn across them (a guitarist's
+    body behind the whole guitar then stands "in front" all round it), while with the outline
+    voting a person's edge can turn it too. So both are placed, and when they turn more than
+    MAX_FREED_TURN_DEG apart, the one whose long axis lies closer to the object's stands."""
     renders = _subtype_renders(plugins, fam, settings, subtype)
     people_off = people_near & ~object_mask
     hidden = occlusion.hidden_by(people_off, object_mask) if free_outline and people_off.any() else None
-    agreement = classify.silhouette_agreement(probable, renders, np.deg2rad(float(settings["max_angle_deg"])), hidden=hidden)
-    best = max(agreement, key=lambda s: agreement[s].iou)
-    placed = align.warp_mask(renders[best].mask, agreement[best].similarity, object_mask.shape)
-    return occlusion.in_front(people_near, object_mask, placed, _mirror_axis(settings, renders[best], agreement[best].similarity))
+    max_angle = np.deg2rad(float(settings["max_angle_deg"]))
+
+    def placement(hidden: np.ndarray | None) -> tuple[np.ndarray, TemplateRenders, align.Similarity]:
+        agreement = classify.silhouette_agreement(probable, renders, max_angle, hidden=hidden)
+        best = max(agreement, key=lambda s: agreement[s].iou)
+        return align.warp_mask(renders[best].mask, agreement[best].similarity, object_mask.shape), renders[best], agreement[best].similarity
+
+    placed, render, similarity = placement(hidden)
+    if hidden is not None:
+        voted = placement(None)
+        if _turn_between(similarity.angle, voted[2].angle, 2 * np.pi) > np.deg2rad(MAX_FREED_TURN_DEG):
+            axis = align.mask_moments(probable)[2]
+            if _turn_between(align.mask_moments(voted[0])[2], axis, np.pi) < _turn_between(align.mask_moments(placed)[2], axis, np.pi):
+                placed, render, similarity = voted
+    return occlusion.in_front(people_near, object_mask, placed, _mirror_axis(settings, render, similarity))
+
+
+def _turn_between(a: float, b: float, period: float) -> float:
+    """The smaller angle between two directions given modulo ``period`` (2 pi: angles; pi: axes)."""
+    return abs((a - b + period / 2) % period - period / 2)
 
 
 def _mirror_axis(settings: dict[str, Any], renders: TemplateRenders, similarity: align.Similarity) -> float | None:

@@ -656,6 +656,28 @@ def test_the_template_judging_who_is_in_front_is_placed_on_the_outline_away_from
     assert not judged(guitar, body_behind, free_outline=True).any()
 
 
+def test_a_person_all_round_the_guitar_does_not_turn_the_judging_template_across_them(monkeypatch):
+    """A guitarist's body behind the whole guitar, an arm across its lower bout in front: with
+    the outline next to the person freed almost no outline votes, and the template placed
+    freely turned across the body and put it "in front" all round the guitar. The placement
+    the whole outline votes on lies along the guitar and stands: only the arm is in front."""
+    from frontal3d import pipeline
+
+    image, guitar = _drawn_guitar((240, 240))
+    family = Family(name="guitar", subtypes=("electric",), canonical_view="front", regions={"electric": ("body",)}, real_size={"electric": 1.0})
+    monkeypatch.setattr(pipeline, "_subtype_renders", lambda plugins, fam, settings, subtype: {"electric": _flat_renders(guitar)})
+    arm = np.zeros(guitar.shape, bool)
+    arm[190:206, 60:230] = True
+    person = np.zeros(guitar.shape, bool)
+    person[20:, 10:230] = True
+    visible = guitar & ~arm
+    found = pipeline._people_in_front(None, family, {"max_angle_deg": 180.0, "outline_mirror": False}, None, visible, visible,
+                                      person, free_outline=True)
+    near_arm = cv2.dilate(arm.astype(np.uint8), np.ones((15, 15), np.uint8)) > 0
+    assert found[arm & guitar].all()
+    assert not (found & ~guitar & ~near_arm).any()  # 12,260 such pixels when the freed placement stood
+
+
 def test_a_person_only_the_segmenter_vouches_for_is_judged_again_when_the_gate_turns_the_object_down(monkeypatch):
     """The outline next to people is freed for every person, but the segmenter alone is as sure
     of soft blobs beside objects as of people, and a freed outline can let a clean car's fit drift

@@ -151,8 +151,8 @@ def align_template(template_mask: np.ndarray, object_mask: np.ndarray,
     seen = None if hidden is None else _MapPyramid((~_checked_shape(hidden, object_mask.shape)).astype(np.float32))
     bins = 2 if template_grey is None and object_grey is None else 16
 
-    tpl_centroid, tpl_area, tpl_axis = _mask_moments(template_mask)
-    obj_centroid, obj_area, obj_axis = _mask_moments(object_mask)
+    tpl_centroid, tpl_area, tpl_axis = mask_moments(template_mask)
+    obj_centroid, obj_area, obj_axis = mask_moments(object_mask)
     scale0 = float(np.sqrt(obj_area / tpl_area))
     obj_radius = _max_radius(object_mask, obj_centroid)
     tpl_radius = _max_radius(template_mask, tpl_centroid) * scale0
@@ -276,7 +276,7 @@ def _mismatched_mirror_axis(template_mask: np.ndarray, tpl_centroid: np.ndarray,
     return float(axes[best])
 
 
-def _mask_moments(mask: np.ndarray) -> tuple[np.ndarray, float, float]:
+def mask_moments(mask: np.ndarray) -> tuple[np.ndarray, float, float]:
     """Centroid (x, y), area in pixels and principal-axis angle (pixel frame) of a mask."""
     m = cv2.moments(mask.astype(np.uint8), binaryImage=True)
     centroid = np.array([m["m10"] / m["m00"], m["m01"] / m["m00"]])
