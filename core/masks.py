@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 
@@ -12,3 +13,10 @@ def mask_extent(mask: np.ndarray) -> int:
     """
     rows, cols = np.nonzero(mask)
     return int(max(np.ptp(rows), np.ptp(cols)) + 1) if len(rows) else max(np.shape(mask))
+
+
+def pieces_touching(mask: np.ndarray, other: np.ndarray, reach: np.ndarray) -> np.ndarray:
+    """The 8-connected pieces of ``mask`` that touch ``other`` grown by the structuring element ``reach``."""
+    _count, pieces = cv2.connectedComponents(np.asarray(mask, dtype=np.uint8), connectivity=8)
+    touching = np.unique(pieces[(cv2.dilate(np.asarray(other, dtype=np.uint8), reach) > 0) & (pieces > 0)])
+    return np.isin(pieces, touching)

@@ -25,6 +25,7 @@ from frontal3d import occluders as people_detector
 from frontal3d.errors import ConfigError, InputError, NoObjectError, NotFrontalError, TemplateError, UnknownFamilyError
 from frontal3d.family import Family, Template
 from frontal3d.imageio import as_rgb, read_image, read_mask
+from frontal3d.masks import pieces_touching
 from frontal3d.plugins import Plugins
 from frontal3d.render import TemplateRenders, load_or_render
 from frontal3d.stages import align, boundary, classify, mesh, occlusion, segment, texture, warp
@@ -663,10 +664,7 @@ def _touching(occluders: np.ndarray | None, mask: np.ndarray) -> np.ndarray:
     """The occluder pieces that touch ``mask`` (empty when there are no occluders)."""
     if occluders is None or not occluders.any():
         return np.zeros_like(mask)
-    count, labels = cv2.connectedComponents(occluders.astype(np.uint8), connectivity=8)
-    near = cv2.dilate(mask.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
-    touching = np.unique(labels[near & occluders])
-    return np.isin(labels, touching[touching > 0])
+    return pieces_touching(occluders, mask, np.ones((5, 5), np.uint8))
 
 
 def _refine_with_templates(plugins: Plugins, rgb: np.ndarray, object_mask: np.ndarray, occluders: np.ndarray | None,

@@ -15,7 +15,7 @@ from typing import Any
 
 import cv2
 import numpy as np
-from frontal3d.masks import mask_extent
+from frontal3d.masks import mask_extent, pieces_touching
 from frontal3d.stages.align import Similarity, warp_mask
 from frontal3d.stages.boundary import default_k, match_contours, trace_contour
 from frontal3d.stages.classify import Agreement, ClassifierContext, silhouette_agreement
@@ -345,10 +345,8 @@ def _filled(visible: np.ndarray, template_near_occluders: np.ndarray, kernel: np
 
 
 def _pieces_touching(mask: np.ndarray, other: np.ndarray) -> np.ndarray:
-    """The 8-connected pieces of ``mask`` that touch ``other`` (lie within one pixel of it)."""
-    _count, pieces = cv2.connectedComponents(np.asarray(mask, dtype=np.uint8), connectivity=8)
-    touching = np.unique(pieces[(cv2.dilate(np.asarray(other, dtype=np.uint8), _disc(1)) > 0) & (pieces > 0)])
-    return np.isin(pieces, touching)
+    """The pieces of ``mask`` that touch ``other`` (lie within one pixel of it)."""
+    return pieces_touching(mask, other, _disc(1))
 
 
 def _values_at(mask: np.ndarray, points: np.ndarray) -> np.ndarray:
