@@ -45,6 +45,10 @@ DENSE_WIDTHS = (16, 32, 48, 64)
 SEGMENTER_CLASSES = ("background", "object")
 #: p(object) above this somewhere: the network sees an object.
 OBJECT_SEEN = 0.5
+#: When the network is sure (p > OBJECT_SEEN) of less object in the photo than this share of
+#: what it is sure of in the photo's negative, it is blind to the object's tones (a white
+#: plane or a pale car its synthetic training rarely showed), and the negative's p joins in.
+NEGATIVE_VIEW_SHARE = 0.5
 
 
 def family_region_names(family: Family) -> list[str]:
@@ -93,10 +97,19 @@ class DenseModel(LoadedModel):
 
     def object_mask(self, image: np.ndarray) -> np.ndarray | None:
         """The object's mask at the image's resolution, or None when the network sees no object."""
-        probability = self.object_probability(image)
+        probability = self.object_probability_either_tone(image)
         if not (probability > OBJECT_SEEN).any():
             return None
         return grabcut_segment(image[..., :3], object_probability=probability)
+
+    def object_probability_either_tone(self, image: np.ndarray) -> np.ndarray:
+        """p(object), taking the photo's negative's view too (the larger p) where the network
+        sees far more object in the negative (:data:`NEGATIVE_VIEW_SHARE`)."""
+        probability = self.object_probability(image)
+        negative = self.object_probability(255 - np.asarray(image[..., :3], dtype=np.uint8))
+        if np.count_nonzero(probability > OBJECT_SEEN) < NEGATIVE_VIEW_SHARE * np.count_nonzero(negative > OBJECT_SEEN):
+            return np.maximum(probability, negative)
+        return probability
 
     def region_map(self, image: np.ndarray, mask: np.ndarray, region_names: tuple[str, ...] | list[str]) -> np.ndarray:
         """Labels indexing ``region_names`` (a subtype's regions) on the image grid, -1 outside ``mask``."""

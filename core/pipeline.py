@@ -284,7 +284,8 @@ def _judge_object(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dict
         if judged:
             report.data["detected_occluder_pixels_judged_with_people"] = int(judged)
     object_mask, people_near, occluders = _with_people_judged(
-        plugins, fam, settings, subtype, object_mask, segmentation.segmented, people, own_occluders, free_outline=free_outline)
+        plugins, fam, settings, subtype, object_mask, segmentation.segmented, people, own_occluders, free_outline=free_outline,
+        report=report)
     touching = _touching(occluders, object_mask)
     probable = _probable_shape(object_mask, touching)
     hidden = occlusion.hidden_by(touching, object_mask) if touching.any() else None
@@ -589,7 +590,7 @@ def _pieces_across_occluders(found: np.ndarray, occluders: np.ndarray | None, ch
 
 def _with_people_judged(plugins: Plugins, fam: Family, settings: dict[str, Any], subtype: str | None, object_mask: np.ndarray,
                         segmented: np.ndarray, people: np.ndarray | None, occluders: np.ndarray | None,
-                        free_outline: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+                        free_outline: bool, report: Report | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """The object mask, the people touching it and the occluders once those people are judged
     in front or behind (:func:`_people_in_front`, with ``free_outline``). Pieces a person in
     front cut off join the object, which is then judged again, and the gap to each such piece
@@ -600,7 +601,7 @@ def _with_people_judged(plugins: Plugins, fam: Family, settings: dict[str, Any],
 
     def in_front_of(mask: np.ndarray, near: np.ndarray) -> np.ndarray:
         probable = _probable_shape(mask, _touching(occluders, mask))
-        return _people_in_front(plugins, fam, settings, subtype, mask, probable, near, free_outline=free_outline)
+        return _people_in_front(plugins, fam, settings, subtype, mask, probable, near, free_outline=free_outline, report=report)
 
     in_front = in_front_of(object_mask, people_near)
     bridged = _pieces_across_people(segmented, people, in_front, object_mask) if in_front.any() else in_front
@@ -684,7 +685,8 @@ def _refine_with_templates(plugins: Plugins, rgb: np.ndarray, object_mask: np.nd
 
 
 def _people_in_front(plugins: Plugins, fam: Family, settings: dict[str, Any], subtype: str | None,
-                     object_mask: np.ndarray, probable: np.ndarray, people_near: np.ndarray, free_outline: bool = False) -> np.ndarray:
+                     object_mask: np.ndarray, probable: np.ndarray, people_near: np.ndarray, free_outline: bool = False,
+                     report: Report | None = None) -> np.ndarray:
     """The people's pixels in front of the object, judged by the best-fitting subtype's
     template placed on the object as seen: the classifiers and the alignment then leave
     them out like found arms (a torso in front of a guitar is not a notch in its body).
@@ -695,7 +697,9 @@ def _people_in_front(plugins: Plugins, fam: Family, settings: dict[str, Any], su
     any outline is left to vote, and the freed template can turn across them (a guitarist's
     body behind the whole guitar then stands "in front" all round it), while with the outline
     voting a person's edge can turn it too. So both are placed, and when they turn more than
-    MAX_FREED_TURN_DEG apart, the one whose long axis lies closer to the object's stands."""
+    MAX_FREED_TURN_DEG apart, the one whose long axis lies closer to the object's stands.
+    ``report`` learns which placement judged (``people_judged_with``): the one to look at when
+    a person is taken for in front or behind the wrong way."""
     renders = _subtype_renders(plugins, fam, settings, subtype)
     people_off = people_near & ~object_mask
     hidden = occlusion.hidden_by(people_off, object_mask) if free_outline and people_off.any() else None
@@ -707,12 +711,18 @@ def _people_in_front(plugins: Plugins, fam: Family, settings: dict[str, Any], su
         return align.warp_mask(renders[best].mask, agreement[best].similarity, object_mask.shape), renders[best], agreement[best].similarity
 
     placed, render, similarity = placement(hidden)
+    judged_with: dict[str, Any] = {"outline": "whole" if hidden is None else "without the outline next to people"}
     if hidden is not None:
         voted = placement(None)
-        if _turn_between(similarity.angle, voted[2].angle, 2 * np.pi) > np.deg2rad(MAX_FREED_TURN_DEG):
+        turn = _turn_between(similarity.angle, voted[2].angle, 2 * np.pi)
+        judged_with["placements_apart_deg"] = round(float(np.rad2deg(turn)), 1)
+        if turn > np.deg2rad(MAX_FREED_TURN_DEG):
             axis = align.mask_moments(probable)[2]
             if _turn_between(align.mask_moments(voted[0])[2], axis, np.pi) < _turn_between(align.mask_moments(placed)[2], axis, np.pi):
                 placed, render, similarity = voted
+                judged_with["outline"] = "whole (the freed placement turned across the people)"
+    if report is not None:
+        report.data["people_judged_with"] = judged_with
     return occlusion.in_front(people_near, object_mask, placed, _mirror_axis(settings, render, similarity))
 
 

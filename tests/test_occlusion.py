@@ -671,11 +671,16 @@ def test_a_person_all_round_the_guitar_does_not_turn_the_judging_template_across
     person = np.zeros(guitar.shape, bool)
     person[20:, 10:230] = True
     visible = guitar & ~arm
+    report = pipeline.Report()
     found = pipeline._people_in_front(None, family, {"max_angle_deg": 180.0, "outline_mirror": False}, None, visible, visible,
-                                      person, free_outline=True)
+                                      person, free_outline=True, report=report)
     near_arm = cv2.dilate(arm.astype(np.uint8), np.ones((15, 15), np.uint8)) > 0
     assert found[arm & guitar].all()
     assert not (found & ~guitar & ~near_arm).any()  # 12,260 such pixels when the freed placement stood
+    # report.json says which placement judged, and how far apart the two turned.
+    judged_with = report.data["people_judged_with"]
+    assert judged_with["outline"].startswith("whole")
+    assert judged_with["placements_apart_deg"] > pipeline.MAX_FREED_TURN_DEG
 
 
 def test_a_person_only_the_segmenter_vouches_for_is_judged_again_when_the_gate_turns_the_object_down(monkeypatch):
@@ -694,9 +699,9 @@ def test_a_person_only_the_segmenter_vouches_for_is_judged_again_when_the_gate_t
     freed: list[bool] = []
     real_people_in_front, real_classifiers = pipeline._people_in_front, pipeline.run_classifiers
 
-    def recorded(*args, free_outline=False):
+    def recorded(*args, free_outline=False, **kwargs):
         freed.append(free_outline)
-        return real_people_in_front(*args, free_outline=free_outline)
+        return real_people_in_front(*args, free_outline=free_outline, **kwargs)
 
     def drifted_when_freed(*args, **kwargs):  # the gate's verdict on a placement the blob pulled away
         if freed[-1]:
