@@ -27,10 +27,14 @@ from frontal3d.render import TemplateRenders
 from frontal3d.stages.align import Similarity
 from frontal3d.stages.turned_views import content_key
 
-#: Side of the square grid on which mirror agreement is measured.
-GRID = 128
+#: Side of the square grid on which mirror agreement is measured. Agreement is counted on
+#: whole pixels (the turned mask thresholded at one half): soft edges made a level plane's thin
+#: wings read only 0.89-0.97 symmetric, as much loss as a 10-degree roll, so the margin had to
+#: be loose enough to let rolled planes through (docs/results.md, "mirror agreement on whole pixels").
+#: A 192 grid with the object filling 0.8 of it keeps thin wings several pixels wide.
+GRID = 192
 #: Share of the grid the object's longest side spans (room for turned lines).
-FILL = 0.7
+FILL = 0.8
 #: Tilts (degrees) of the template's own mirror line searched about its vertical axis.
 TEMPLATE_TILTS = tuple(range(-4, 5, 2))
 #: Tilts (degrees) of the object's mirror line searched about the aligned template's axis.
@@ -99,6 +103,7 @@ def best_mirror(mask: np.ndarray, axis: float, tilts_deg: tuple[int, ...], bends
     for tilt in tilts_deg:
         direction = axis + np.deg2rad(tilt)
         upright = cv2.warpAffine(small, upright_turn(centre, direction, GRID, scale)[:2], (GRID, GRID), flags=cv2.INTER_LINEAR, borderValue=0.0)
+        upright = (upright > 0.5).astype(np.float32)
         spectrum = np.fft.rfft(upright, n=2 * GRID, axis=1)
         overlap = np.fft.irfft(spectrum * spectrum, n=2 * GRID, axis=1)  # row y, index 2c
         occupied = np.flatnonzero(upright.sum(axis=1) > 0)
