@@ -88,9 +88,9 @@ def best_mirror(mask: np.ndarray, axis: float, tilts_deg: tuple[int, ...], bends
     counter-clockwise on screen) plus each tilt, each bent like a parabola by each of
     ``bends`` (see :data:`OBJECT_BENDS`), and the winning tilt in degrees (relative to image-up).
 
-    For each direction the mask is turned so the line is vertical; the overlap of every
-    row with its own reflection about every column is one autocorrelation, done by FFT,
-    and a bent line reads each row's overlap at its own column.
+    For each direction the mask is turned so the line is vertical and cut to whole pixels
+    (see :data:`GRID`); the overlap of every row with its own reflection about every column
+    is one autocorrelation, done by FFT, and a bent line reads each row's overlap at its own column.
     """
     small = _cropped(mask)
     ys, xs = np.nonzero(small > 0.5)
