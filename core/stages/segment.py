@@ -15,6 +15,7 @@ from typing import Mapping
 import cv2
 import numpy as np
 from scipy import ndimage
+from skimage import morphology
 
 from frontal3d.masks import mask_extent
 from frontal3d.render import TemplateRenders
@@ -121,6 +122,12 @@ STRIP_ELONGATION = 5.0
 #: makes of a gap. Chosen on the car renders' even and odd halves and the six shared photos.
 UNVOUCHED_P = 0.03
 UNVOUCHED_OPENING = 0.01
+#: Thin parts (:func:`_sure_thin_parts`): what an opening by a disc of :data:`THIN_PART` of the long
+#: side takes off the network's object (p above each of :data:`THIN_PART_P`), in pieces at least
+#: :data:`THIN_PART_LENGTH` of the network's object (p > 0.5) long; their centre lines are sure foreground.
+THIN_PART = 0.02
+THIN_PART_P = (0.5, 0.7, 0.9)
+THIN_PART_LENGTH = 0.25
 
 
 def mask_from_alpha(image: np.ndarray) -> np.ndarray | None:
@@ -268,7 +275,8 @@ def _initial_labels(lab: np.ndarray, background: np.ndarray, border_mask: np.nda
     strong edges (an object of the background's own colour still has an outline).
     Definite background: the border and whatever lies far from all of these. With a learned
     p(object), the network's whole object (p >= :data:`LEARNED_UNLIKELY`) counts as seeded
-    for that distance: its surest part alone may be a guitar's neck without the body.
+    for that distance: its surest part alone may be a guitar's neck without the body; the
+    centre lines of its thin parts are sure foreground (:func:`_sure_thin_parts`).
     """
     residual = lab - background
     # Distance to the nearest border colour after flattening: one colour for a plain or
@@ -306,10 +314,60 @@ def _initial_labels(lab: np.ndarray, background: np.ndarray, border_mask: np.nda
     near = _dilated(seeded, _seed_reach(lab.shape[:2]))
     init[~near | sure_background] = cv2.GC_BGD
     init[salient] = cv2.GC_PR_FGD
+    if probability is not None:
+        init[_sure_thin_parts(probability, distance, spread)] = cv2.GC_FGD
     init[border_mask] = cv2.GC_BGD
     if (init == cv2.GC_PR_FGD).mean() < MIN_FOREGROUND / 2:
         return None
     return init, ~near & ~sure_background & ~border_mask
+
+
+def _sure_thin_parts(probability: np.ndarray, distance: np.ndarray, spread: float) -> np.ndarray:
+    """The centre lines of the thin parts the network sees (a guitar's neck, a tail boom) whose
+    colour stands out from the background's: sure foreground for GrabCut, whose smoothness term
+    otherwise cuts a part a few pixels wide wherever its colour comes near the background's (a
+    grey fretboard on a beige carpet).
+
+    A part is thin where an opening by a disc of :data:`THIN_PART` of the long side takes it off
+    the network's object, at any of :data:`THIN_PART_P`: the network's blur widens a part at low
+    p, and at high p it may break up a part it sees less surely (a neck near its headstock). A
+    line stands out when its median ``distance`` to the border's colours exceeds ``spread``, the
+    border's own (the network's p also strays onto grain, in thin fragments of grain's colour).
+    """
+    lines = np.zeros(probability.shape, bool)
+    radius = max(1, round(THIN_PART * max(probability.shape)))
+    shortest = THIN_PART_LENGTH * mask_extent(probability > 0.5)
+    for level in THIN_PART_P:
+        seen = (probability > level).astype(np.uint8)
+        thin = (seen > 0) & (cv2.morphologyEx(seen, cv2.MORPH_OPEN, _disc(radius)) == 0)
+        _, pieces, stats, _ = cv2.connectedComponentsWithStats(thin.astype(np.uint8), connectivity=8)
+        length = np.maximum(stats[:, cv2.CC_STAT_WIDTH], stats[:, cv2.CC_STAT_HEIGHT])
+        long_parts = 1 + np.flatnonzero(length[1:] >= shortest)
+        if len(long_parts):
+            # Three pixels wide, so that the opening that clears specks later leaves it.
+            centre = _pruned(morphology.skeletonize(np.isin(pieces, long_parts)), 2 * radius)
+            lines |= _dilated(centre, 1) & (seen > 0)
+    count, pieces = cv2.connectedComponents(lines.astype(np.uint8), connectivity=8)
+    if count < 2:
+        return lines
+    index = np.arange(1, count)
+    standing_out = np.asarray(ndimage.median(distance[lines], pieces[lines], index)) > spread
+    return np.isin(pieces, index[standing_out])
+
+
+def _pruned(skeleton: np.ndarray, steps: int) -> np.ndarray:
+    """``skeleton`` without its spurs up to ``steps`` pixels long (a region's skeleton branches
+    into each corner, off a neck's end and into a blob beside a wing); the ends of its main
+    lines shorten by as much."""
+    line = skeleton.astype(np.uint8)
+    neighbours = np.ones((3, 3), np.float32)
+    neighbours[1, 1] = 0
+    for _ in range(steps):
+        ends = (line > 0) & (cv2.filter2D(line, cv2.CV_32F, neighbours, borderType=cv2.BORDER_CONSTANT) <= 1)
+        if not ends.any():
+            break
+        line[ends] = 0
+    return line > 0
 
 
 def _seed_reach(shape: tuple[int, ...]) -> int:
