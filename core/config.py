@@ -27,6 +27,7 @@ CORE_FAMILY_SETTINGS: dict[str, Any] = {
     "max_angle_deg": 180.0,  # in-plane rotation searched by the alignment
     "frontal_threshold": 0.45,  # minimum silhouette agreement (IoU x foreshortening) of the frontal gate
     "shape_prior": False,  # cut GrabCut's mask again with the templates placed on it (2-3 s; helps cluttered backgrounds)
+    "mirror_repair": False,  # cut pieces of the segmented mask that break the object's mirror symmetry against background, add back a missing mirror half (canonical views symmetric about a line)
     "turned_margin": 1.0,  # frontal gate: reject when a template turned 30-90 deg fits the outline better by more than this IoU; 1 = off
     "mirror_margin": 1.0,  # frontal gate: reject when the outline is less mirror-symmetric about its axis than the template's by more than this IoU; 1 = off
     "contact_pair_margin": 1.0,  # frontal gate: reject when both axles' ground contacts split into pairs further apart than this share of the length; 1 = off

@@ -20,3 +20,8 @@ def pieces_touching(mask: np.ndarray, other: np.ndarray, reach: np.ndarray) -> n
     _count, pieces = cv2.connectedComponents(np.asarray(mask, dtype=np.uint8), connectivity=8)
     touching = np.unique(pieces[(cv2.dilate(np.asarray(other, dtype=np.uint8), reach) > 0) & (pieces > 0)])
     return np.isin(pieces, touching)
+
+
+def disc(radius: int) -> np.ndarray:
+    """A filled disc of the radius, as a structuring element for OpenCV's morphology."""
+    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))

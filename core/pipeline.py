@@ -21,6 +21,7 @@ from typing import Any, Callable, Iterator, NamedTuple
 import cv2
 import numpy as np
 
+from frontal3d import learned_dense
 from frontal3d import occluders as people_detector
 from frontal3d.errors import ConfigError, InputError, NoObjectError, NotFrontalError, TemplateError, UnknownFamilyError
 from frontal3d.family import Family, Template
@@ -28,7 +29,7 @@ from frontal3d.imageio import as_rgb, read_image, read_mask
 from frontal3d.masks import pieces_touching
 from frontal3d.plugins import Plugins
 from frontal3d.render import TemplateRenders, load_or_render
-from frontal3d.stages import align, boundary, classify, mesh, occlusion, segment, texture, warp
+from frontal3d.stages import align, boundary, classify, mesh, mirror_repair, occlusion, segment, texture, warp
 from frontal3d.stages.export import export_all
 from frontal3d.stages.mirror_symmetry import template_mirror
 
@@ -483,7 +484,8 @@ def segment_object(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dic
                    report: Report | None = None) -> Segmentation:
     """The objects' masks and the occluders, as reconstruction finds them before classifying:
     the segmenter chain, the occluder detectors, the pieces grouped into objects and, with
-    the ``shape_prior`` setting, GrabCut's mask of the largest cut again with the templates.
+    the ``shape_prior`` setting, GrabCut's mask of the largest cut again with the templates and,
+    with ``mirror_repair``, each object's mask mended by its mirror image (stages.mirror_repair).
     The mask benchmark (frontal3d.eval_masks) scores exactly the largest object's mask."""
     report = report or Report()
     found = _segment(plugins, rgb, fam, settings, user_mask, report)
@@ -492,7 +494,22 @@ def segment_object(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dic
     if settings["shape_prior"] and report.data["segmenter"] == "GrabCut (training-free)":
         # The largest only (2-4 s each): the others are judged only when it is turned down or with --all.
         objects[0] = _refine_with_templates(plugins, rgb, objects[0], occluders, fam, settings, subtype, report)
+    segmented_here = report.data["segmenter"] == "GrabCut (training-free)" or report.data["segmenter"].startswith("learned segmenter")
+    if settings["mirror_repair"] and segmented_here and occluders is None:
+        # Not a mask the user gave, nor one with people in front: those may be rightly lopsided.
+        network = learned_dense.configured_model(settings, "segmenter", fam)
+        probability = network.object_probability_either_tone(rgb) if network is not None else None
+        objects = [_mirror_repaired(rgb, mask, probability, index, report) for index, mask in enumerate(objects)]
     return Segmentation(objects, occluders, found, user_occluders)
+
+
+def _mirror_repaired(rgb: np.ndarray, mask: np.ndarray, probability: np.ndarray | None, index: int, report: Report) -> np.ndarray:
+    """One object's mask after the mirror repair, noted in report.json when it changed anything
+    (``index`` counts the objects found, largest first)."""
+    repaired, summary = mirror_repair.mirror_repaired(rgb, mask, probability)
+    if summary.get("cut_px") or summary.get("added_px"):
+        report.data.setdefault("mirror_repair", []).append({"object": index} | summary)
+    return repaired
 
 
 def _segment(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dict[str, Any], user_mask: np.ndarray | None, report: Report) -> np.ndarray:

@@ -15,34 +15,15 @@ from frontal3d.stages.classify import ClassifierContext, FrontalGate
 from frontal3d.stages.mirror_symmetry import OBJECT_BENDS, best_mirror
 from frontal3d.stages.occlusion import VisibleAgreementContext
 
+from shapes import toy_airliner
+
 FAMILY = Family(name="airplane", subtypes=("airliner",), canonical_view="top", regions={"airliner": ("fuselage",)},
                 real_size={"airliner": 40.0}, view_hint="a top view of the plane")
 
 
-def _plane() -> trimesh.Trimesh:
-    """An airliner in the canonical frame (nose +Y, fin +Z): fuselage, wing, tail, fin, two engines hung below."""
-    fuselage = trimesh.creation.cylinder(radius=0.05, height=1.0, sections=24)
-    fuselage.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0]))
-    wing = trimesh.creation.box(extents=[1.0, 0.16, 0.02])
-    wing.apply_translation([0, 0.05, 0])
-    tail = trimesh.creation.box(extents=[0.3, 0.08, 0.015])
-    tail.apply_translation([0, -0.42, 0])
-    fin = trimesh.creation.box(extents=[0.015, 0.12, 0.3])
-    fin.apply_translation([0, -0.41, 0.15])
-    parts = [fuselage, wing, tail, fin]
-    for x in (-0.28, 0.28):
-        engine = trimesh.creation.cylinder(radius=0.035, height=0.16, sections=16)
-        engine.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, [1, 0, 0]))
-        engine.apply_translation([x, 0.14, -0.09])
-        pylon = trimesh.creation.box(extents=[0.01, 0.06, 0.09])
-        pylon.apply_translation([x, 0.1, -0.045])
-        parts += [engine, pylon]
-    return trimesh.util.concatenate(parts)
-
-
 @pytest.fixture(scope="module")
 def plane() -> trimesh.Trimesh:
-    return _plane()
+    return toy_airliner()
 
 
 @pytest.fixture(scope="module")

@@ -18,6 +18,7 @@ single cutaways) are less symmetric than the templates even when seen straight o
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import cv2
@@ -47,6 +48,7 @@ OFFSET_LIMIT = 0.15
 #: nothing on synthetic planes (seeds 80, 81) and let rolled real planes' wing shift pass as a bend.
 OBJECT_BENDS = (-0.04, 0.0, 0.04)
 _TEMPLATE_CACHE: dict[str, tuple[float, float]] = {}
+_SQUARE = np.ones((3, 3), np.uint8)
 _CACHE_LIMIT = 32
 
 
@@ -83,41 +85,91 @@ def template_mirror(render: TemplateRenders) -> tuple[float, float]:
     return _TEMPLATE_CACHE[key]
 
 
+@dataclass(frozen=True)
+class MirrorFit:
+    """The best mirror line found on a mask: its agreement, its direction and where it runs.
+
+    ``to_grid`` carries image pixels (x, y, 1) onto the search grid, on which the line is
+    vertical; on grid row y it runs at column ``doubled_columns[y] / 2`` (a bent line
+    runs at its own column on each row), so the mirror image of grid column x is
+    ``doubled_columns[y] - x``.
+    """
+
+    agreement: float
+    tilt_deg: float
+    to_grid: np.ndarray
+    doubled_columns: np.ndarray
+
+    def partners(self, shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+        """Every image pixel's mirror image, as float32 x and y maps for ``cv2.remap``."""
+        rows, cols = np.indices(shape, dtype=np.float64)
+        x = self.to_grid[0, 0] * cols + self.to_grid[0, 1] * rows + self.to_grid[0, 2]
+        y = self.to_grid[1, 0] * cols + self.to_grid[1, 1] * rows + self.to_grid[1, 2]
+        mirrored_x = self.doubled_columns[np.clip(np.round(y).astype(int), 0, len(self.doubled_columns) - 1)] - x
+        back = np.linalg.inv(self.to_grid)
+        return ((back[0, 0] * mirrored_x + back[0, 1] * y + back[0, 2]).astype(np.float32),
+                (back[1, 0] * mirrored_x + back[1, 1] * y + back[1, 2]).astype(np.float32))
+
+    def distance_to_line(self, shape: tuple[int, int]) -> np.ndarray:
+        """Every image pixel's distance from the line, in image pixels."""
+        rows, cols = np.indices(shape, dtype=np.float64)
+        x = self.to_grid[0, 0] * cols + self.to_grid[0, 1] * rows + self.to_grid[0, 2]
+        y = self.to_grid[1, 0] * cols + self.to_grid[1, 1] * rows + self.to_grid[1, 2]
+        line = self.doubled_columns[np.clip(np.round(y).astype(int), 0, len(self.doubled_columns) - 1)] / 2.0
+        return np.abs(x - line) / np.hypot(self.to_grid[0, 0], self.to_grid[0, 1])
+
+
 def best_mirror(mask: np.ndarray, axis: float, tilts_deg: tuple[int, ...], bends: tuple[float, ...] = (0.0,)) -> tuple[float, float]:
     """Best IoU of ``mask`` with its mirror image over lines at ``axis`` (radians from image-up,
     counter-clockwise on screen) plus each tilt, each bent like a parabola by each of
-    ``bends`` (see :data:`OBJECT_BENDS`), and the winning tilt in degrees (relative to image-up).
+    ``bends`` (see :data:`OBJECT_BENDS`), and the winning tilt in degrees (relative to image-up)."""
+    fit = fit_mirror(mask, axis, tilts_deg, bends)
+    return fit.agreement, fit.tilt_deg
+
+
+def fit_mirror(mask: np.ndarray, axis: float, tilts_deg: Iterable[float], bends: tuple[float, ...] = (0.0,),
+               outline: bool = False, grid: int = GRID) -> MirrorFit:
+    """The mirror line of :func:`best_mirror`, with where it runs; ``outline`` scores the
+    outline's agreement with its mirror image instead of the area's; ``grid`` is the search
+    grid's side (finer places the line more exactly, at a cost).
 
     For each direction the mask is turned so the line is vertical and cut to whole pixels
     (see :data:`GRID`); the overlap of every row with its own reflection about every column
     is one autocorrelation, done by FFT, and a bent line reads each row's overlap at its own column.
+    An outline is a band of three grid pixels: a blob stuck to the object adds area on one
+    side only, but along the object's own outline the two sides still match.
     """
-    small = _cropped(mask)
+    small, to_small = _cropped(mask, grid)
     ys, xs = np.nonzero(small > 0.5)
     centre = (float(xs.mean()), float(ys.mean()))
-    scale = GRID * FILL / max(small.shape)
+    scale = grid * FILL / max(small.shape)
     # Mirror columns c near the centre, as indices 2c into the autocorrelation.
-    doubled = np.arange(round(2 * (GRID / 2 - 0.5 - OFFSET_LIMIT * GRID)), round(2 * (GRID / 2 - 0.5 + OFFSET_LIMIT * GRID)) + 1)
-    rows = np.arange(GRID)
-    best_iou, best_tilt = -1.0, 0.0
+    doubled = np.arange(round(2 * (grid / 2 - 0.5 - OFFSET_LIMIT * grid)), round(2 * (grid / 2 - 0.5 + OFFSET_LIMIT * grid)) + 1)
+    rows = np.arange(grid)
+    best: MirrorFit | None = None
     for tilt in tilts_deg:
         direction = axis + np.deg2rad(tilt)
-        upright = cv2.warpAffine(small, upright_turn(centre, direction, GRID, scale)[:2], (GRID, GRID), flags=cv2.INTER_LINEAR, borderValue=0.0)
+        turn = upright_turn(centre, direction, grid, scale)
+        upright = cv2.warpAffine(small, turn[:2], (grid, grid), flags=cv2.INTER_LINEAR, borderValue=0.0)
         upright = (upright > 0.5).astype(np.float32)
-        spectrum = np.fft.rfft(upright, n=2 * GRID, axis=1)
-        overlap = np.fft.irfft(spectrum * spectrum, n=2 * GRID, axis=1)  # row y, index 2c
         occupied = np.flatnonzero(upright.sum(axis=1) > 0)
+        if outline:
+            upright = cv2.dilate(upright - cv2.erode(upright, _SQUARE), _SQUARE)
+        spectrum = np.fft.rfft(upright, n=2 * grid, axis=1)
+        overlap = np.fft.irfft(spectrum * spectrum, n=2 * grid, axis=1)  # row y, index 2c
         length = max(float(occupied[-1] - occupied[0]), 1.0)
         along = (rows - (occupied[0] + occupied[-1]) / 2.0) / (length / 2.0)
         area = upright.sum()
         for bend in bends:
             shift = np.round(2 * bend * length * (along**2 - 1.0 / 3.0)).astype(int)
-            index = np.clip(doubled[:, None] + shift[None, :], 0, 2 * GRID - 1)
+            index = np.clip(doubled[:, None] + shift[None, :], 0, 2 * grid - 1)
             inter = overlap[rows[None, :], index].sum(axis=1)
-            iou = float((inter / np.maximum(2 * area - inter, 1e-9)).max())
-            if iou > best_iou:
-                best_iou, best_tilt = iou, float(np.rad2deg(direction))
-    return best_iou, best_tilt
+            iou = inter / np.maximum(2 * area - inter, 1e-9)
+            column = int(iou.argmax())
+            if best is None or iou[column] > best.agreement:
+                best = MirrorFit(float(iou[column]), float(np.rad2deg(direction)), turn @ to_small, doubled[column] + shift)
+    assert best is not None, "no tilt to search"
+    return best
 
 
 def upright_turn(centre: tuple[float, float], direction: float, side: int, scale: float = 1.0) -> np.ndarray:
@@ -129,14 +181,20 @@ def upright_turn(centre: tuple[float, float], direction: float, side: int, scale
     return turn
 
 
-def _cropped(mask: np.ndarray) -> np.ndarray:
-    """The mask's box with a margin, as float coverage, shrunk (area average) to at most 2 x GRID."""
+def _cropped(mask: np.ndarray, grid: int) -> tuple[np.ndarray, np.ndarray]:
+    """The mask's box with a margin, as float coverage, shrunk (area average) to at most 2 x ``grid``,
+    and the 3x3 affine carrying image pixels onto it."""
     ys, xs = np.nonzero(mask)
     height, width = ys.max() - ys.min() + 1, xs.max() - xs.min() + 1
     margin = int(0.3 * max(height, width)) + 2
     box = np.zeros((height + 2 * margin, width + 2 * margin), np.float32)
     box[margin:-margin, margin:-margin] = mask[ys.min() : ys.max() + 1, xs.min() : xs.max() + 1]
-    shrink = min(1.0, 2 * GRID / max(box.shape))
+    to_box = np.array([[1.0, 0.0, margin - xs.min()], [0.0, 1.0, margin - ys.min()], [0.0, 0.0, 1.0]])
+    shrink = min(1.0, 2 * grid / max(box.shape))
     if shrink < 1.0:
+        full_height, full_width = box.shape
         box = cv2.resize(box, None, fx=shrink, fy=shrink, interpolation=cv2.INTER_AREA)
-    return box
+        # cv2.resize's pixel centres: x_small = (x + 0.5) * f - 0.5, per axis.
+        fx, fy = box.shape[1] / full_width, box.shape[0] / full_height
+        to_box = np.array([[fx, 0.0, 0.5 * fx - 0.5], [0.0, fy, 0.5 * fy - 0.5], [0.0, 0.0, 1.0]]) @ to_box
+    return box, to_box

@@ -15,7 +15,7 @@ from typing import Any
 
 import cv2
 import numpy as np
-from frontal3d.masks import mask_extent, pieces_touching
+from frontal3d.masks import disc, mask_extent, pieces_touching
 from frontal3d.stages.align import Similarity, warp_mask
 from frontal3d.stages.boundary import default_k, match_contours, trace_contour
 from frontal3d.stages.classify import Agreement, ClassifierContext, silhouette_agreement
@@ -123,7 +123,7 @@ def shown_in_front(detected: np.ndarray, image: np.ndarray, object_mask: np.ndar
     if not on_object.any() or np.count_nonzero(detected & ~object_mask) < MIN_COLOUR_REFERENCE:
         return detected
     window = max(3, round(COLOUR_VOTE_WINDOW * mask_extent(object_mask)))
-    grown = cv2.dilate(detected.astype(np.uint8), _disc(max(1, window // 2))) > 0
+    grown = cv2.dilate(detected.astype(np.uint8), disc(max(1, window // 2))) > 0
     seen_object = object_mask & ~grown
     if np.count_nonzero(seen_object) < MIN_COLOUR_REFERENCE:
         return detected
@@ -139,7 +139,7 @@ def hidden_by(occluders: np.ndarray, object_mask: np.ndarray) -> np.ndarray:
     """Pixels whose membership in the silhouette the occluders leave unknown: the occluders
     grown by OCCLUDER_REACH of the object's size (an arm's soft edge hides the outline too)."""
     radius = max(1, round(OCCLUDER_REACH * mask_extent(object_mask)))
-    return cv2.dilate(np.asarray(occluders, dtype=np.uint8), _disc(radius)) > 0
+    return cv2.dilate(np.asarray(occluders, dtype=np.uint8), disc(radius)) > 0
 
 
 def in_front(people: np.ndarray, object_mask: np.ndarray, aligned_template_mask: np.ndarray, mirror_axis: float | None = None) -> np.ndarray:
@@ -172,18 +172,18 @@ def in_front(people: np.ndarray, object_mask: np.ndarray, aligned_template_mask:
         if line is not None and line.usable:
             template = template | reflected(~off_object, line.matrix).astype(np.uint8)
     radius = max(1, round(OCCLUDER_REACH * size))
-    unseen = off_object & (cv2.erode(template, _disc(radius)) > 0)
+    unseen = off_object & (cv2.erode(template, disc(radius)) > 0)
     _count, pieces = cv2.connectedComponents(unseen.astype(np.uint8))
     # The person segmenter's mask spills a few pixels over the object's edge (and takes in a
     # held object): only the person away from the object can vouch for a gap.
-    away = people & (cv2.dilate((~off_object).astype(np.uint8), _disc(radius)) == 0)
-    near_people = cv2.dilate(away.astype(np.uint8), _disc(1)) > 0
+    away = people & (cv2.dilate((~off_object).astype(np.uint8), disc(radius)) == 0)
+    near_people = cv2.dilate(away.astype(np.uint8), disc(1)) > 0
     touched = np.unique(pieces[near_people & unseen])
     inside = np.isin(pieces, touched[touched > 0])
     if not inside.any():
         return np.zeros_like(people)
-    claimed = (people | inside) & off_object & (cv2.dilate(inside.astype(np.uint8), _disc(2 * radius)) > 0)
-    depth = _disc(max(1, round(IN_FRONT_DEPTH * size)))
+    claimed = (people | inside) & off_object & (cv2.dilate(inside.astype(np.uint8), disc(2 * radius)) > 0)
+    depth = disc(max(1, round(IN_FRONT_DEPTH * size)))
     deep = cv2.morphologyEx(claimed.astype(np.uint8), cv2.MORPH_OPEN, depth)
     kept = claimed & (cv2.dilate(deep, depth) > 0)
     count, kept_pieces, stats, _centroids = cv2.connectedComponentsWithStats(kept.astype(np.uint8), connectivity=8)
@@ -282,7 +282,7 @@ def rebuild_silhouette(object_mask: np.ndarray, occluders: np.ndarray, aligned_t
     occluders = np.asarray(occluders, dtype=bool)
     aligned_template_mask = np.asarray(aligned_template_mask, dtype=bool)
     original_area = int(object_mask.sum())
-    kernel = _disc(max(1, round(OCCLUDER_REACH * max(object_mask.shape))))
+    kernel = disc(max(1, round(OCCLUDER_REACH * max(object_mask.shape))))
     reach = cv2.dilate(occluders.astype(np.uint8), kernel) > 0
     if not (reach & object_mask).any():
         return RebuiltSilhouette(object_mask, np.zeros_like(object_mask), original_area)
@@ -304,7 +304,7 @@ def rebuild_silhouette(object_mask: np.ndarray, occluders: np.ndarray, aligned_t
         filled = mirror_filled(filled, visible, reach, occluders, mirror)
     # Inpainted: every restored pixel (what the image shows there is not the object) and the
     # occluders with one pixel of slack (their anti-aliased edge).
-    occluded = filled & ((cv2.dilate(occluders.astype(np.uint8), _disc(1)) > 0) | ~object_mask)
+    occluded = filled & ((cv2.dilate(occluders.astype(np.uint8), disc(1)) > 0) | ~object_mask)
     return RebuiltSilhouette(filled, occluded, original_area, rebuilt_parts, mirror)
 
 
@@ -322,7 +322,7 @@ def occluded_at_full_resolution(upsampled: np.ndarray, rebuilt_mask: np.ndarray,
     rebuilt_mask = np.asarray(rebuilt_mask, dtype=bool)
     occluded = np.asarray(upsampled, dtype=bool) | ~np.asarray(seen_object, dtype=bool)
     if occluders is not None:
-        occluded |= cv2.dilate(np.asarray(occluders, dtype=np.uint8), _disc(1)) > 0
+        occluded |= cv2.dilate(np.asarray(occluders, dtype=np.uint8), disc(1)) > 0
     return rebuilt_mask & occluded
 
 
@@ -332,8 +332,6 @@ def rebuild_regions(regions: np.ndarray, object_mask: np.ndarray, occluded: np.n
     return reconstruct_region_map(np.where(object_mask, regions, -1), object_mask, needs_fill)
 
 
-def _disc(radius: int) -> np.ndarray:
-    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
 
 
 def _filled(visible: np.ndarray, template_near_occluders: np.ndarray, kernel: np.ndarray, reach: np.ndarray) -> np.ndarray:
@@ -346,7 +344,7 @@ def _filled(visible: np.ndarray, template_near_occluders: np.ndarray, kernel: np
 
 def _pieces_touching(mask: np.ndarray, other: np.ndarray) -> np.ndarray:
     """The pieces of ``mask`` that touch ``other`` (lie within one pixel of it)."""
-    return pieces_touching(mask, other, _disc(1))
+    return pieces_touching(mask, other, disc(1))
 
 
 def _values_at(mask: np.ndarray, points: np.ndarray) -> np.ndarray:

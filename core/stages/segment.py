@@ -17,7 +17,7 @@ import numpy as np
 from scipy import ndimage
 from skimage import morphology
 
-from frontal3d.masks import mask_extent
+from frontal3d.masks import disc, mask_extent
 from frontal3d.render import TemplateRenders
 from frontal3d.stages.align import warp_mask
 from frontal3d.stages.classify import Agreement, silhouette_agreement
@@ -339,7 +339,7 @@ def _sure_thin_parts(probability: np.ndarray, distance: np.ndarray, spread: floa
     shortest = THIN_PART_LENGTH * mask_extent(probability > 0.5)
     for level in THIN_PART_P:
         seen = (probability > level).astype(np.uint8)
-        thin = (seen > 0) & (cv2.morphologyEx(seen, cv2.MORPH_OPEN, _disc(radius)) == 0)
+        thin = (seen > 0) & (cv2.morphologyEx(seen, cv2.MORPH_OPEN, disc(radius)) == 0)
         _, pieces, stats, _ = cv2.connectedComponentsWithStats(thin.astype(np.uint8), connectivity=8)
         length = np.maximum(stats[:, cv2.CC_STAT_WIDTH], stats[:, cv2.CC_STAT_HEIGHT])
         long_parts = 1 + np.flatnonzero(length[1:] >= shortest)
@@ -500,7 +500,7 @@ def _cut_background_colours(labels: np.ndarray, probability: np.ndarray, colours
     outside = np.bincount(nearest[background], minlength=len(centres))
     foreign = (inside > 0) & ~own & (outside >= BACKGROUND_COLOUR_SHARE * inside) & (_hue_apart(centres, own) > DOUBTED_CHROMA)
     cut = found & foreign[nearest] & (probability < KEEP_P)
-    cut = cv2.morphologyEx(cut.astype(np.uint8), cv2.MORPH_OPEN, _disc(1)) > 0
+    cut = cv2.morphologyEx(cut.astype(np.uint8), cv2.MORPH_OPEN, disc(1)) > 0
     _cut_and_regrow(labels, cut, flattened)
 
 
@@ -524,7 +524,7 @@ def _cut_unvouched_pieces(labels: np.ndarray, probability: np.ndarray, colours: 
     if np.count_nonzero(ring) < MIN_OBJECT_PIXELS or np.count_nonzero(sure) < MIN_OBJECT_PIXELS:
         return
     unvouched = found & (probability < UNVOUCHED_P)
-    opening = _disc(max(1, round(UNVOUCHED_OPENING * max(found.shape))))
+    opening = disc(max(1, round(UNVOUCHED_OPENING * max(found.shape))))
     unvouched = cv2.morphologyEx(unvouched.astype(np.uint8), cv2.MORPH_OPEN, opening) > 0
     count, pieces = cv2.connectedComponents(unvouched.astype(np.uint8), connectivity=8)
     if count < 2:
@@ -550,7 +550,7 @@ def _fill_vouched_strips(labels: np.ndarray, probability: np.ndarray, colours: n
     if not objects:
         return
     kept = np.logical_or.reduce(objects)
-    closed = cv2.morphologyEx(kept.astype(np.uint8), cv2.MORPH_CLOSE, _disc(max(1, round(STRIP_GAP * max(found.shape))))) > 0
+    closed = cv2.morphologyEx(kept.astype(np.uint8), cv2.MORPH_CLOSE, disc(max(1, round(STRIP_GAP * max(found.shape))))) > 0
     gaps = closed & ~found & (probability > STRIP_P) & ~_dilated(found & ~kept, 1)
     _, pieces, stats, _ = cv2.connectedComponentsWithStats(gaps.astype(np.uint8), connectivity=8)
     length = np.maximum(stats[:, cv2.CC_STAT_WIDTH], stats[:, cv2.CC_STAT_HEIGHT])
@@ -800,7 +800,7 @@ def _segment_with_prior(small: np.ndarray, first: np.ndarray, prior: np.ndarray,
     """GrabCut seeded from one placed template (see :func:`refine_with_shape_prior`), or None."""
     extent = mask_extent(prior)
     near = _dilated(prior, max(2, round(reach_fraction * extent)))
-    core = (cv2.erode(prior.astype(np.uint8), _disc(max(1, round(PRIOR_CORE * extent)))) > 0) & first
+    core = (cv2.erode(prior.astype(np.uint8), disc(max(1, round(PRIOR_CORE * extent)))) > 0) & first
     labels = np.full(prior.shape, cv2.GC_PR_BGD, np.uint8)
     labels[prior | (first & near)] = cv2.GC_PR_FGD
     labels[core] = cv2.GC_FGD
@@ -845,12 +845,10 @@ def _background_like(rgb: np.ndarray) -> np.ndarray:
     return distance <= BACKGROUND_LIKE_DISTANCE * typical
 
 
-def _disc(radius: int) -> np.ndarray:
-    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1,) * 2)
 
 
 def _dilated(mask: np.ndarray, radius: int) -> np.ndarray:
-    return cv2.dilate(mask.astype(np.uint8), _disc(radius)) > 0
+    return cv2.dilate(mask.astype(np.uint8), disc(radius)) > 0
 
 
 def _iou(a: np.ndarray, b: np.ndarray) -> float:

@@ -1,0 +1,94 @@
+"""Mirror repair of a segmented mask: a plane's symmetry cuts a stuck-on blob and restores a lost wing."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from frontal3d.eval_gate import turned
+from frontal3d.eval_masks import mask_iou
+from frontal3d.evaluate import render_frontal
+from frontal3d.photo_render import composite
+from frontal3d.pipeline import Report, segment_object
+from frontal3d.plugins import Plugins
+from frontal3d.stages.mirror_repair import mirror_repaired
+from frontal3d.synth import linear_gradient
+
+from shapes import toy_airliner
+
+SIZE = 320
+#: An ellipse behind the plane's right wing, touching it.
+BLOB = dict(center=(250, 110), axes=(45, 30), angle=0, startAngle=0, endAngle=360)
+
+
+@pytest.fixture(scope="module")
+def plane() -> tuple[np.ndarray, np.ndarray]:
+    image, mask, _ = render_frontal(toy_airliner(), SIZE)
+    return image, mask
+
+
+def _photo(plane: tuple[np.ndarray, np.ndarray], blob_colour: tuple[float, float, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The plane over a green gradient (with a blob of ``blob_colour`` behind its wing), sensor noise; and the blob's mask."""
+    image, mask = plane
+    background = linear_gradient(SIZE, np.array([60.0, 120.0, 70.0]), np.array([90.0, 150.0, 100.0]), np.array([0.6, 0.8]))
+    blob = np.zeros(mask.shape, np.uint8)
+    cv2.ellipse(blob, color=1, thickness=-1, **BLOB)
+    if blob_colour is not None:
+        cv2.ellipse(background, color=blob_colour, thickness=-1, **BLOB)
+    photo = composite(np.dstack([image, mask.astype(np.uint8) * 255]), background).astype(np.float32)
+    photo += np.random.default_rng(0).normal(0, 3, photo.shape)
+    return np.clip(photo, 0, 255).astype(np.uint8), (blob > 0) & ~mask
+
+
+def test_a_blob_of_another_colour_stuck_to_a_wing_is_cut(plane):
+    photo, blob = _photo(plane, blob_colour=(40.0, 95.0, 45.0))
+    truth = plane[1]
+    repaired, summary = mirror_repaired(photo, truth | blob)
+    assert mask_iou(truth | blob, truth) < 0.9
+    assert mask_iou(repaired, truth) > 0.99
+    assert summary["cut_px"] > 0.9 * blob.sum() and summary["added_px"] == 0
+
+
+def test_a_blob_of_the_planes_own_grey_is_cut_only_where_the_network_doubts_it(plane):
+    image, truth = plane
+    grey = tuple(float(c) for c in image[truth].mean(axis=0))
+    photo, blob = _photo(plane, blob_colour=grey)
+    found = truth | blob
+    kept, _ = mirror_repaired(photo, found)  # no network: an object-coloured piece may be a turned fin
+    assert (kept == found).all()
+    doubted, _ = mirror_repaired(photo, found, np.where(blob, 0.2, np.where(truth, 1.0, 0.0)))
+    assert mask_iou(doubted, truth) > 0.99
+    vouched, _ = mirror_repaired(photo, found, np.where(found, 0.9, 0.0))
+    assert (vouched == found).all()
+
+
+def test_a_wing_tip_the_mask_lost_is_added_back(plane):
+    photo, _ = _photo(plane)
+    truth = plane[1]
+    columns = np.flatnonzero(truth.any(axis=0))
+    lost = truth.copy()
+    lost[:, int((columns.min() + columns.max()) / 2 + 90):] = False
+    repaired, summary = mirror_repaired(photo, lost)
+    assert mask_iou(lost, truth) < 0.9
+    assert mask_iou(repaired, truth) > 0.99
+    assert summary["added_px"] > 0 and summary["cut_px"] == 0
+
+
+@pytest.mark.parametrize("degrees", [10, 30])
+def test_a_rolled_plane_seen_whole_is_left_as_it_is(degrees):
+    # Rolled, the engines move off their mirror images; the network sees them as plane.
+    image, mask, _ = render_frontal(turned(toy_airliner(), "yaw", degrees), SIZE)
+    repaired, _ = mirror_repaired(image, mask, mask.astype(np.float32))
+    assert (repaired == mask).all()
+
+
+def test_a_mask_the_user_gives_is_not_repaired(plane):
+    photo, blob = _photo(plane, blob_colour=(40.0, 95.0, 45.0))
+    plugins = Plugins()
+    fam = plugins.family("airplane")
+    report = Report()
+    given = plane[1] | blob
+    found = segment_object(plugins, photo, fam, plugins.settings("airplane"), user_mask=given, report=report).object_mask
+    assert (found == given).all()
+    assert "mirror_repair" not in report.data
