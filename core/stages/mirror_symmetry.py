@@ -102,21 +102,24 @@ class MirrorFit:
 
     def partners(self, shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
         """Every image pixel's mirror image, as float32 x and y maps for ``cv2.remap``."""
-        rows, cols = np.indices(shape, dtype=np.float64)
-        x = self.to_grid[0, 0] * cols + self.to_grid[0, 1] * rows + self.to_grid[0, 2]
-        y = self.to_grid[1, 0] * cols + self.to_grid[1, 1] * rows + self.to_grid[1, 2]
-        mirrored_x = self.doubled_columns[np.clip(np.round(y).astype(int), 0, len(self.doubled_columns) - 1)] - x
+        x, y, line = self._on_grid(shape)
+        mirrored_x = 2.0 * line - x
         back = np.linalg.inv(self.to_grid)
         return ((back[0, 0] * mirrored_x + back[0, 1] * y + back[0, 2]).astype(np.float32),
                 (back[1, 0] * mirrored_x + back[1, 1] * y + back[1, 2]).astype(np.float32))
 
     def distance_to_line(self, shape: tuple[int, int]) -> np.ndarray:
         """Every image pixel's distance from the line, in image pixels."""
+        x, _, line = self._on_grid(shape)
+        return np.abs(x - line) / np.hypot(self.to_grid[0, 0], self.to_grid[0, 1])
+
+    def _on_grid(self, shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every image pixel's grid column and row, and the line's column on that row."""
         rows, cols = np.indices(shape, dtype=np.float64)
         x = self.to_grid[0, 0] * cols + self.to_grid[0, 1] * rows + self.to_grid[0, 2]
         y = self.to_grid[1, 0] * cols + self.to_grid[1, 1] * rows + self.to_grid[1, 2]
         line = self.doubled_columns[np.clip(np.round(y).astype(int), 0, len(self.doubled_columns) - 1)] / 2.0
-        return np.abs(x - line) / np.hypot(self.to_grid[0, 0], self.to_grid[0, 1])
+        return x, y, line
 
 
 def best_mirror(mask: np.ndarray, axis: float, tilts_deg: tuple[int, ...], bends: tuple[float, ...] = (0.0,)) -> tuple[float, float]:
