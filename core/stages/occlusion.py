@@ -332,8 +332,6 @@ def rebuild_regions(regions: np.ndarray, object_mask: np.ndarray, occluded: np.n
     return reconstruct_region_map(np.where(object_mask, regions, -1), object_mask, needs_fill)
 
 
-
-
 def _filled(visible: np.ndarray, template_near_occluders: np.ndarray, kernel: np.ndarray, reach: np.ndarray) -> np.ndarray:
     """Visible object plus the template pieces under occluders that touch it, closed within the
     occluders' reach (the outline elsewhere, a headstock's tuner gaps, is seen) and hole-free (paper Fig. 5)."""

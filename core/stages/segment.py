@@ -845,8 +845,6 @@ def _background_like(rgb: np.ndarray) -> np.ndarray:
     return distance <= BACKGROUND_LIKE_DISTANCE * typical
 
 
-
-
 def _dilated(mask: np.ndarray, radius: int) -> np.ndarray:
     return cv2.dilate(mask.astype(np.uint8), disc(radius)) > 0
 
