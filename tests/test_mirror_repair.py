@@ -92,3 +92,23 @@ def test_a_mask_the_user_gives_is_not_repaired(plane):
     found = segment_object(plugins, photo, fam, plugins.settings("airplane"), user_mask=given, report=report).object_mask
     assert (found == given).all()
     assert "mirror_repair" not in report.data
+
+
+def test_a_blob_of_a_third_colour_is_cut_though_the_network_vouches_for_it(plane):
+    # Grey-green, between the plane's grey and the green background: a little nearer the plane's
+    # colours than the background's, but not the plane's own paint, so p(object) need not doubt it.
+    photo, blob = _photo(plane, blob_colour=(86.0, 112.0, 86.0))
+    truth = plane[1]
+    found = truth | blob
+    repaired, _ = mirror_repaired(photo, found, np.where(found, 0.9, 0.0))
+    assert mask_iou(repaired, truth) > 0.99
+
+
+def test_a_doubted_piece_apart_from_the_plane_is_cut(plane):
+    image, truth = plane
+    grey = tuple(float(c) for c in image[truth].mean(axis=0))
+    photo, blob = _photo(plane, blob_colour=grey)
+    apart = blob & ~(cv2.dilate(truth.astype(np.uint8), np.ones((9, 9), np.uint8)) > 0)
+    found = truth | apart
+    repaired, _ = mirror_repaired(photo, found, np.where(apart, 0.1, np.where(truth, 1.0, 0.0)))
+    assert mask_iou(repaired, truth) > 0.99

@@ -59,6 +59,9 @@ EDGE_RATIO = 3.0
 #: How much nearer (CIELAB) a piece's mirror image must be to the object's colours than to the
 #: background's before it is added, and to the background's before an object-coloured piece is cut.
 CLEAR_GAP = 3.0
+#: A piece is object-coloured when its colours lie nearer the object's than this share of their
+#: distance to the background's: a blob of a third colour, about as far from both, is not.
+OBJECT_NEARER = 0.75
 #: An object-coloured piece may be a part of the object that a turn moved off its mirror image
 #: (a rolled plane's fin or engine): it is cut only where the learned segmenter's mean p(object)
 #: is below this too.
@@ -140,8 +143,9 @@ def _pieces_to_change(image: np.ndarray, mask: np.ndarray, probability: np.ndarr
             added |= beyond
             continue
         meeting = piece & (cv2.dilate((mask & ~piece).astype(np.uint8), disc(1)) > 0)
-        along_edge = meeting.any() and float(np.median(gradient[meeting])) >= EDGE_RATIO * inside_gradient
-        object_coloured = float(np.median(to_object[piece])) < float(np.median(to_background[piece]))
+        # A piece apart from the rest is set off from it by background already.
+        along_edge = not meeting.any() or float(np.median(gradient[meeting])) >= EDGE_RATIO * inside_gradient
+        object_coloured = float(np.median(to_object[piece])) < OBJECT_NEARER * float(np.median(to_background[piece]))
         doubted = probability is not None and float(probability[piece].mean()) < DOUBTED_P
         if (not on_line and along_edge and beyond_background < beyond_object
                 and (not object_coloured or (doubted and beyond_object - beyond_background >= CLEAR_GAP))):
