@@ -12,8 +12,9 @@ image says which error it is:
   broke: its mirror image is added;
 * a piece whose mirror image looks like background is cut, if it meets the rest of the
   object along an image edge (a blob over the background meets the object along the
-  object's outline) and is not itself object-coloured unless its mirror image is clearly
-  background.
+  object's outline) or does not meet it at all, and is not itself object-coloured (clearly
+  nearer the object's colours than the background's: :data:`OBJECT_NEARER`) unless the
+  learned segmenter doubts it and its mirror image is clearly background.
 
 The line is found on the outline (:func:`frontal3d.stages.mirror_symmetry.fit_mirror` with
 ``outline=True``) over every direction: a blob adds area on one side, which pulls an area-
