@@ -7,12 +7,16 @@ import numpy as np
 import pytest
 import trimesh
 
+from frontal3d.eval_gate import turned
+from frontal3d.evaluate import render_frontal
 from frontal3d.family import Family, Template
+from frontal3d.plugins import Plugins
 from frontal3d.render import TemplateRenders, render_template
 from frontal3d.stages.align import Similarity
 from frontal3d.stages.classify import ClassifierContext, FrontalGate
+from frontal3d.stages.occlusion import VisibleAgreementContext
 from frontal3d.stages.turned_views import turn_evidence, turned_hypotheses
-from shapes import box_car
+from shapes import SLAB_GUITAR_FAMILY, box_car, slab_guitar
 
 FAMILY = Family(name="car", subtypes=("sedan",), canonical_view="side", regions={"sedan": ("body",)},
                 real_size={"sedan": 4.2}, view_hint="a side view of the car")
@@ -90,3 +94,37 @@ def test_gate_with_turned_margin_accepts_side_views_scaled_and_tilted(car_like, 
     photo = _photo(_render(car_like, yaw).mask, 1.7, tilt)
     decision = _gate(photo, template, turned_margin=0.0)
     assert decision.accepted and decision.label == "frontal"
+
+
+
+@pytest.fixture(scope="module")
+def guitar_template() -> TemplateRenders:
+    mesh, labels = slab_guitar()
+    return render_template(Template("guitar", "classical", mesh, labels, ("body", "neck")), 200)
+
+
+def _guitar_gate(template: TemplateRenders, mask: np.ndarray, view_hidden: np.ndarray | None = None):
+    settings = {"max_angle_deg": 120.0, "frontal_threshold": 0.45, "turned_margin": Plugins().settings("guitar")["turned_margin"]}
+    fields = dict(image=np.zeros(mask.shape + (3,), np.uint8), object_mask=mask, family=SLAB_GUITAR_FAMILY,
+                  renders={"classical": template}, settings=settings)
+    context = ClassifierContext(**fields) if view_hidden is None else VisibleAgreementContext(**fields, view_hidden=view_hidden)
+    return FrontalGate().classify(context)
+
+
+@pytest.mark.parametrize(("axis", "degrees", "frontal"), [("yaw", 0.0, True), ("yaw", 10.0, True), ("pitch", -10.0, True),
+                                                          ("yaw", 60.0, False), ("yaw", -60.0, False), ("pitch", 45.0, False)])
+def test_shipped_guitar_margin_turns_down_a_guitar_a_turned_template_explains_better(guitar_template, axis, degrees, frontal):
+    mask = render_frontal(turned(slab_guitar()[0], axis, degrees), 200)[1]
+    decision = _guitar_gate(guitar_template, mask)
+    assert decision.accepted is frontal
+    if not frontal:
+        assert "a turned template fits its outline better" in decision.reason and "front view of the guitar" in decision.reason
+
+
+def test_turned_template_test_does_not_judge_an_outline_a_person_beside_it_may_hide(guitar_template):
+    mask = render_frontal(turned(slab_guitar()[0], "pitch", 45.0), 200)[1]
+    assert not _guitar_gate(guitar_template, mask).accepted
+    beside = np.zeros_like(mask)
+    columns = np.flatnonzero(mask.any(axis=0))
+    beside[:, columns[-1] + 1 : columns[-1] + 6] = True
+    assert _guitar_gate(guitar_template, mask, view_hidden=beside).accepted

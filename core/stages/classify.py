@@ -207,8 +207,8 @@ class FrontalGate:
       their canonical view by more than ``turned_margin`` (see
       :mod:`frontal3d.stages.turned_views`). This catches the 30-60° turns that
       scale and shape variation hide from the first test; off (1.0) unless the family
-      sets it, since families whose shapes vary a lot (guitars, planes) would lose
-      frontal photos to it.
+      sets it (planes, whose planforms vary most, would lose frontal photos to it), and
+      skipped when the outline is partly hidden (a bite in it can fit a turned template).
     - the outline may not be less mirror-symmetric about the aligned template's axis than
       the template by more than ``mirror_margin`` (see
       :mod:`frontal3d.stages.mirror_symmetry`). This catches turns about that axis (a
@@ -346,11 +346,11 @@ def _floor_shows(context: ClassifierContext, margin: float) -> str | None:
 
 #: The frontal gate's tests after the agreement threshold, in order: (setting holding the margin,
 #: judge returning what gives the turn away or None, skipped when the outline is partly hidden).
-#: An arm across the object, or a person beside it whose pixels may be the object's, makes an
-#: outline lopsided, cuts a neck or a wheel, or hides a side wall: only whole outlines are judged
-#: by those. A margin of 1 or more switches a test off.
+#: An arm across the object, or a person beside it whose pixels may be the object's, bites into
+#: the outline (which a turned template may then fit better), makes it lopsided, cuts a neck or a
+#: wheel, or hides a side wall: only whole outlines are judged by those. A margin of 1 or more switches a test off.
 TURN_TESTS: tuple[tuple[str, Callable[[ClassifierContext, float], str | None], bool], ...] = (
-    ("turned_margin", _turned_template, False),
+    ("turned_margin", _turned_template, True),
     ("mirror_margin", _lopsided, True),
     ("parallax_margin", _neck_beside_midline, True),
     ("rim_margin", _side_wall_shows, True),
