@@ -1,4 +1,4 @@
-"""Turned-template hypotheses: the frontal gate tells a car turned 30-45° from one seen side-on."""
+"""Turned-template hypotheses: the frontal gate tells a car turned 30-45° from one seen side-on, and a turned guitar from a frontal one."""
 
 from __future__ import annotations
 
@@ -94,7 +94,6 @@ def test_gate_with_turned_margin_accepts_side_views_scaled_and_tilted(car_like, 
     photo = _photo(_render(car_like, yaw).mask, 1.7, tilt)
     decision = _gate(photo, template, turned_margin=0.0)
     assert decision.accepted and decision.label == "frontal"
-
 
 
 @pytest.fixture(scope="module")
