@@ -15,7 +15,7 @@ from frontal3d.stages.classify import ClassifierContext, FrontalGate
 from frontal3d.stages.mirror_symmetry import OBJECT_BENDS, best_mirror
 from frontal3d.stages.occlusion import VisibleAgreementContext
 
-from shapes import toy_airliner
+from shapes import strip_beside, toy_airliner
 
 FAMILY = Family(name="airplane", subtypes=("airliner",), canonical_view="top", regions={"airliner": ("fuselage",)},
                 real_size={"airliner": 40.0}, view_hint="a top view of the plane")
@@ -81,9 +81,7 @@ def test_mirror_test_does_not_judge_an_outline_a_person_beside_it_may_hide(plane
     margin = Plugins().settings("airplane")["mirror_margin"]
     mask = render_frontal(turned(plane, "yaw", 40.0), 200)[1]
     assert not _gate(template, mask, margin).accepted
-    beside = np.zeros_like(mask)
-    columns = np.flatnonzero(mask.any(axis=0))
-    beside[:, columns[-1] + 1 : columns[-1] + 6] = True
+    beside = strip_beside(mask)
     settings = {"max_angle_deg": 30.0, "frontal_threshold": 0.2, "mirror_margin": margin}
     context = VisibleAgreementContext(image=np.zeros(mask.shape + (3,), np.uint8), object_mask=mask, family=FAMILY,
                                       renders={"airliner": template}, settings=settings, view_hidden=beside)

@@ -16,7 +16,7 @@ from frontal3d.stages.classify import ClassifierContext, FrontalGate
 from frontal3d.stages.neck_parallax import parallax_evidence
 from frontal3d.stages.occlusion import VisibleAgreementContext
 
-from shapes import SLAB_GUITAR_FAMILY as FAMILY, slab_guitar
+from shapes import SLAB_GUITAR_FAMILY as FAMILY, slab_guitar, strip_beside
 
 #: Side of the template and of the views: fine enough for a neck a dozen pixels wide.
 RESOLUTION = 400
@@ -113,9 +113,7 @@ def test_parallax_test_does_not_judge_an_outline_a_person_beside_it_may_hide(gui
     margin = Plugins().settings("guitar")["parallax_margin"]
     mask = render_frontal(turned(guitar, "yaw", 45.0), RESOLUTION)[1]
     assert not _gate(template, mask, margin).accepted
-    beside = np.zeros_like(mask)
-    columns = np.flatnonzero(mask.any(axis=0))
-    beside[:, columns[-1] + 1 : columns[-1] + 6] = True
+    beside = strip_beside(mask)
     context = VisibleAgreementContext(image=np.zeros(mask.shape + (3,), np.uint8), object_mask=mask, family=FAMILY,
                                       renders={"classical": template}, settings=_settings(margin), view_hidden=beside)
     assert FrontalGate().classify(context).accepted

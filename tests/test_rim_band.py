@@ -16,7 +16,7 @@ from frontal3d.stages.classify import ClassifierContext, FrontalGate
 from frontal3d.stages.occlusion import VisibleAgreementContext
 from frontal3d.stages.rim_band import rim_evidence
 
-from shapes import SLAB_GUITAR_FAMILY as FAMILY, slab_guitar
+from shapes import SLAB_GUITAR_FAMILY as FAMILY, slab_guitar, strip_beside
 
 #: Side of the template and of the views (the shared renders' gate views are 256 px).
 RESOLUTION = 256
@@ -105,9 +105,7 @@ def test_rim_test_does_not_judge_an_outline_a_person_beside_it_may_hide(guitar, 
     margin = Plugins().settings("guitar")["rim_margin"]
     image, mask = _view(guitar, "pitch", -45.0)
     assert not FrontalGate().classify(_context(template, image, mask, margin)).accepted
-    beside = np.zeros_like(mask)
-    columns = np.flatnonzero(mask.any(axis=0))
-    beside[:, columns[-1] + 1 : columns[-1] + 6] = True
+    beside = strip_beside(mask)
     assert FrontalGate().classify(_context(template, image, mask, margin, view_hidden=beside)).accepted
 
 

@@ -16,7 +16,7 @@ from frontal3d.stages.align import Similarity
 from frontal3d.stages.classify import ClassifierContext, FrontalGate
 from frontal3d.stages.occlusion import VisibleAgreementContext
 from frontal3d.stages.turned_views import turn_evidence, turned_hypotheses
-from shapes import SLAB_GUITAR_FAMILY, box_car, slab_guitar
+from shapes import SLAB_GUITAR_FAMILY, box_car, slab_guitar, strip_beside
 
 FAMILY = Family(name="car", subtypes=("sedan",), canonical_view="side", regions={"sedan": ("body",)},
                 real_size={"sedan": 4.2}, view_hint="a side view of the car")
@@ -123,7 +123,5 @@ def test_shipped_guitar_margin_turns_down_a_guitar_a_turned_template_explains_be
 def test_turned_template_test_does_not_judge_an_outline_a_person_beside_it_may_hide(guitar_template):
     mask = render_frontal(turned(slab_guitar()[0], "pitch", 45.0), 200)[1]
     assert not _guitar_gate(guitar_template, mask).accepted
-    beside = np.zeros_like(mask)
-    columns = np.flatnonzero(mask.any(axis=0))
-    beside[:, columns[-1] + 1 : columns[-1] + 6] = True
+    beside = strip_beside(mask)
     assert _guitar_gate(guitar_template, mask, view_hidden=beside).accepted
