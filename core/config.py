@@ -26,6 +26,7 @@ CORE_FAMILY_SETTINGS: dict[str, Any] = {
     "region_k": 32,  # the per-region jump bound K of section 3.2.2
     "max_angle_deg": 180.0,  # in-plane rotation searched by the alignment
     "frontal_threshold": 0.45,  # minimum silhouette agreement (IoU x foreshortening) of the frontal gate
+    "template_past_box": False,  # silhouette agreement counts the template placed past the object's box (plus a 10 % margin) as missed, not only within it
     "shape_prior": False,  # cut GrabCut's mask again with the templates placed on it (2-3 s; helps cluttered backgrounds)
     "mirror_repair": False,  # cut pieces of the segmented mask that break the object's mirror symmetry against background, add back a missing mirror half (canonical views symmetric about a line)
     "turned_margin": 1.0,  # frontal gate: reject when a template turned 30-90 deg fits the outline better by more than this IoU; 1 = off

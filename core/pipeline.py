@@ -693,8 +693,9 @@ def _refine_with_templates(plugins: Plugins, rgb: np.ndarray, object_mask: np.nd
     Only GrabCut's masks: a user's mask, an alpha channel or a learned mask stands as given."""
     renders = _subtype_renders(plugins, fam, settings, forced_subtype)
     max_angle = np.deg2rad(float(settings["max_angle_deg"]))
-    agreement = classify.silhouette_agreement(object_mask, renders, max_angle)
-    refined = segment.refine_with_shape_prior(rgb, object_mask, renders, agreement, max_angle, exclude=occluders)
+    past_box = classify.counts_template_past_box(settings)
+    agreement = classify.silhouette_agreement(object_mask, renders, max_angle, past_box=past_box)
+    refined = segment.refine_with_shape_prior(rgb, object_mask, renders, agreement, max_angle, exclude=occluders, past_box=past_box)
     report.data["shape_prior_changed_pixels"] = 0 if refined is object_mask else int(np.count_nonzero(refined ^ object_mask))
     if refined is object_mask:
         return object_mask

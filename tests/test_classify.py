@@ -9,6 +9,7 @@ import trimesh
 
 from frontal3d.family import Family, Template
 from frontal3d.render import TemplateRenders, render_template
+from frontal3d.stages.align import Similarity, placed_off_grid, warp_mask
 from frontal3d.stages.classify import ClassifierContext, FrontalGate, SubtypeClassifier, silhouette_agreement
 
 FAMILY = Family(name="guitar", subtypes=("classical", "electric"), canonical_view="front",
@@ -87,6 +88,27 @@ def test_agreement_similarity_places_the_template_on_the_object(guitar_like):
     assert agreement.similarity.scale == pytest.approx(1.5, rel=0.05)
     landed = cv2.warpAffine(render.mask.astype(np.uint8), agreement.similarity.matrix, (280, 320), flags=cv2.INTER_NEAREST) > 0
     assert (landed & photo).sum() / (landed | photo).sum() > 0.9
+
+
+def test_agreement_counts_the_template_placed_past_the_grid_as_missed(guitar_like):
+    """A body with no neck: with ``past_box`` the template's neck, placed off the object's box, is object not seen."""
+    render = guitar_like["frontal"]
+    widths = render.mask.sum(axis=1)
+    body = render.mask.copy()
+    body[: np.nonzero(widths > 0.5 * widths.max())[0].min() - 2] = False
+    photo = _placed(body, (300, 260), 1.5, 0.0)
+    counted = silhouette_agreement(photo, {"electric": render}, np.pi, past_box=True)["electric"]
+    assert counted.iou == pytest.approx(body.sum() / render.mask.sum(), abs=0.04)
+    assert silhouette_agreement(photo, {"electric": render}, np.pi)["electric"].iou > counted.iou + 0.1
+
+
+def test_placed_off_grid_counts_the_pixels_warp_mask_drops():
+    square = np.ones((10, 10), bool)
+    assert placed_off_grid(square, Similarity(1.0, 0.0, 2.0, 3.0), (20, 20)) == 0
+    assert placed_off_grid(square, Similarity(1.0, 0.0, -5.0, 0.0), (20, 20)) == 50
+    turned = Similarity(2.0, np.pi / 4, 15.0, -8.0)
+    canvas = warp_mask(square, Similarity(1.0, 0.0, 40.0, 40.0).compose(turned), (120, 120))
+    assert canvas.sum() - warp_mask(square, turned, (20, 20)).sum() == placed_off_grid(square, turned, (20, 20))
 
 
 def test_subtype_picks_the_matching_one_of_two_clearly_different_shapes():

@@ -117,6 +117,21 @@ def warp_mask(mask: np.ndarray, sim: Similarity, out_shape: tuple[int, int]) -> 
     return out > 0
 
 
+def placed_off_grid(mask: np.ndarray, sim: Similarity, shape: tuple[int, int]) -> int:
+    """How many pixels of ``mask`` placed by ``sim`` fall off the ``shape`` grid (:func:`warp_mask` drops them)."""
+    ys, xs = np.nonzero(mask)
+    if not len(ys):
+        return 0
+    corners = sim.apply(np.array([[xs.min(), ys.min()], [xs.max(), ys.min()], [xs.min(), ys.max()], [xs.max(), ys.max()]], float))
+    low = np.floor(corners.min(axis=0) - 1).astype(int)
+    high = np.ceil(corners.max(axis=0) + 1).astype(int)
+    if (low >= 0).all() and (high <= [shape[1] - 1, shape[0] - 1]).all():
+        return 0
+    canvas = warp_mask(mask, Similarity(1.0, 0.0, float(-low[0]), float(-low[1])).compose(sim), (int(high[1] - low[1] + 1), int(high[0] - low[0] + 1)))
+    on_grid = canvas[max(0, -low[1]) : max(0, shape[0] - low[1]), max(0, -low[0]) : max(0, shape[1] - low[0])]
+    return int(np.count_nonzero(canvas) - np.count_nonzero(on_grid))
+
+
 def warp_labels(labels: np.ndarray, sim: Similarity, out_shape: tuple[int, int], fill: int = -1) -> np.ndarray:
     """Template label map (e.g. regions, -1 outside) -> int32 labels on the image grid, nearest neighbour."""
     src = np.ascontiguousarray(labels, dtype=np.float32)

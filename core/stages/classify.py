@@ -21,7 +21,7 @@ import numpy as np
 from frontal3d.config import CORE_FAMILY_SETTINGS
 from frontal3d.family import Family
 from frontal3d.render import TemplateRenders
-from frontal3d.stages.align import Similarity, align_template, warp_labels, warp_mask
+from frontal3d.stages.align import Similarity, align_template, placed_off_grid, warp_labels, warp_mask
 from frontal3d.stages.ground_contacts import ContactEvidence, contact_evidence
 from frontal3d.stages.mirror_symmetry import MirrorEvidence, mirror_evidence
 from frontal3d.stages.neck_parallax import ParallaxEvidence, parallax_evidence
@@ -100,12 +100,16 @@ class ClassifierContext:
     def agreement(self) -> dict[str, Agreement]:
         """Per subtype: IoU with the aligned template and the template -> image similarity."""
         if self._agreement is None:
-            self._agreement = silhouette_agreement(self.object_mask, self.renders, self.max_angle())
+            self._agreement = silhouette_agreement(self.object_mask, self.renders, self.max_angle(), past_box=self.past_box())
         return self._agreement
 
     def max_angle(self) -> float:
         """In-plane rotation (radians, either way) the template placements search."""
         return float(np.deg2rad(float(self.settings.get("max_angle_deg", 180.0))))
+
+    def past_box(self) -> bool:
+        """Whether the template placed past the object's box counts against the agreement (``template_past_box``)."""
+        return counts_template_past_box(self.settings)
 
     def margin(self, name: str) -> float:
         """A frontal-gate test's margin: the family's setting, else the core's (1 = the test is off)."""
@@ -175,14 +179,24 @@ class Classifier(Protocol):
     def classify(self, context: ClassifierContext) -> Decision: ...
 
 
+def counts_template_past_box(settings: dict[str, Any]) -> bool:
+    """The family's ``template_past_box`` setting (see :func:`silhouette_agreement`)."""
+    return bool(settings.get("template_past_box", CORE_FAMILY_SETTINGS["template_past_box"]))
+
+
 def silhouette_agreement(object_mask: np.ndarray, renders: dict[str, TemplateRenders], max_angle: float,
-                         hidden: np.ndarray | None = None) -> dict[str, Agreement]:
+                         hidden: np.ndarray | None = None, past_box: bool = False) -> dict[str, Agreement]:
     """Align each subtype's template mask to ``object_mask`` at ~128 px and report the IoU.
 
     The returned similarity maps full-resolution template render pixels to
     ``object_mask`` pixels, so it can place the template's region maps on the image.
     ``hidden`` pixels (under occluders) do not vote on the placement (see
     :func:`~frontal3d.stages.align.align_template`); the IoU is still the plain one.
+    With ``past_box`` (the family's ``template_past_box``) template pixels placed off the grid
+    (the object's box with a 10 % margin) count as missed too: a guitar template's neck placed
+    off a limousine's end is a neck the photo does not show. Where people may hide the outline
+    the template past the box may lie under them, so those agreements leave it out
+    (:class:`~frontal3d.stages.occlusion.VisibleAgreementContext` scores the seen pixels only).
     """
     object_small, object_to_small, hidden_small = _normalised(object_mask, hidden)
     result = {}
@@ -190,7 +204,12 @@ def silhouette_agreement(object_mask: np.ndarray, renders: dict[str, TemplateRen
         template_small, template_to_small, _ = _normalised(render.mask)
         small_sim, diagnostics = align_template(template_small, object_small, max_angle=max_angle, hidden=hidden_small)
         full_sim = object_to_small.inverse().compose(small_sim.compose(template_to_small))
-        result[subtype] = Agreement(iou=float(diagnostics["iou"]), similarity=full_sim)
+        iou = float(diagnostics["iou"])
+        missed = placed_off_grid(template_small, small_sim, object_small.shape) if past_box else 0
+        if missed:
+            union = np.count_nonzero(warp_mask(template_small, small_sim, object_small.shape) | object_small)
+            iou *= union / (union + missed)
+        result[subtype] = Agreement(iou=iou, similarity=full_sim)
     return result
 
 

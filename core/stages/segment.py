@@ -741,7 +741,7 @@ PRIOR_ITERATIONS = 5
 
 def refine_with_shape_prior(image: np.ndarray, mask: np.ndarray, renders: Mapping[str, TemplateRenders],
                             agreement: Mapping[str, Agreement], max_angle: float = np.pi,
-                            exclude: np.ndarray | None = None) -> np.ndarray:
+                            exclude: np.ndarray | None = None, past_box: bool = False) -> np.ndarray:
     """Re-segment with the templates placed on the first mask as shape priors; ``mask`` when none helps.
 
     Clutter that fools the first pass (a blob of the object's colour touching a wing, a
@@ -754,7 +754,7 @@ def refine_with_shape_prior(image: np.ndarray, mask: np.ndarray, renders: Mappin
     the wrong subtype best. The template only seeds; colour decides the edge.
 
     A candidate is judged as the classifier judges the first mask: its silhouette
-    agreement with its template, re-fitted. The best replaces ``mask`` only when it
+    agreement with its template, re-fitted (``past_box`` as in that function). The best replaces ``mask`` only when it
     beats the first mask's best agreement by :data:`PRIOR_MIN_GAIN`; the template is
     a generic shape, so a colour cut that merely hugs it (or takes clutter in its
     reach) must make the object more template-like, not just different. An already
@@ -785,7 +785,7 @@ def refine_with_shape_prior(image: np.ndarray, mask: np.ndarray, renders: Mappin
             if candidate is None or not _consistent(candidate, first, prior, background_like):
                 continue
             # The IoU of the re-fitted template does not depend on the mask's resolution.
-            score = silhouette_agreement(candidate, {subtype: renders[subtype]}, max_angle)[subtype].iou
+            score = silhouette_agreement(candidate, {subtype: renders[subtype]}, max_angle, past_box=past_box)[subtype].iou
             if score > best_score:
                 best, best_score = candidate, score
     if best is None:
