@@ -13,6 +13,8 @@ from frontal3d.errors import InputError
 def read_image(path: Path) -> np.ndarray:
     """Read an image as RGB or RGBA uint8 (alpha kept: it may be the object's mask)."""
     path = Path(path)
+    if path.is_dir():
+        raise InputError(f"cannot read image {path}: it is a folder (give the image files, e.g. {path}/*.jpg)")
     if not path.is_file():
         raise InputError(f"cannot read image {path}: no such file")
     data = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)

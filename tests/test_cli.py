@@ -66,6 +66,7 @@ def test_unreadable_image_is_one_line_error_and_writes_nothing(tmp_path, capsys)
 
 def test_missing_and_empty_images(tmp_path, capsys):
     assert "no such file" in _one_line_error(capsys, ["reconstruct", str(tmp_path / "nope.png"), "--family", "car"])
+    assert "it is a folder" in _one_line_error(capsys, ["reconstruct", str(tmp_path), "--family", "car"])
     empty = tmp_path / "empty.png"
     cv2.imwrite(str(empty), np.full((64, 64, 3), 128, np.uint8))
     assert "empty" in _one_line_error(capsys, ["reconstruct", str(empty), "--family", "car", "-o", str(tmp_path / "o")])
