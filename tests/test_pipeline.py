@@ -166,6 +166,10 @@ def test_cli_reconstructs_the_bundled_example(tmp_path, capsys):
     loaded = trimesh.load(folder / "model.glb", force="scene")
     node_names = set(loaded.graph.nodes)
     assert {"wheel_front_left", "wheel_rear_right"} <= node_names
+    for name in ("model.glb", "model.obj"):  # the files split vertices at texture seams only
+        solid = trimesh.load(folder / name, force="mesh")
+        solid.merge_vertices(merge_tex=True, merge_norm=True)
+        assert solid.is_watertight and solid.volume > 0, name
     assert [p for p in tmp_path.iterdir()] == [out]  # no staging folder left behind
 
 
