@@ -26,7 +26,7 @@ from frontal3d import occluders as people_detector
 from frontal3d.errors import ConfigError, InputError, NoObjectError, NotFrontalError, TemplateError, UnknownFamilyError
 from frontal3d.family import Family, Template
 from frontal3d.imageio import as_rgb, read_image, read_mask
-from frontal3d.masks import pieces_touching
+from frontal3d.masks import pieces_touching, within
 from frontal3d.plugins import Plugins
 from frontal3d.render import TemplateRenders, load_or_render
 from frontal3d.stages import align, boundary, classify, mesh, mirror_repair, occlusion, segment, texture, warp
@@ -573,8 +573,7 @@ def _group_near_largest(objects: list[np.ndarray], occluders: np.ndarray | None 
     chosen = objects[0].copy()
     ys, xs = np.nonzero(chosen)
     radius = max(2, int(0.08 * max(np.ptp(ys), np.ptp(xs))))
-    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
-    reach = cv2.dilate((chosen | _touching(occluders, chosen)).astype(np.uint8), kernel) > 0
+    reach = within(chosen | _touching(occluders, chosen), radius)
     left_out = []
     for component in objects[1:]:
         if (component & reach).any():

@@ -20,6 +20,7 @@ import numpy as np
 
 from frontal3d.config import CORE_FAMILY_SETTINGS
 from frontal3d.family import Family
+from frontal3d.masks import within
 from frontal3d.render import TemplateRenders
 from frontal3d.stages.align import Similarity, align_template, placed_off_grid, warp_labels, warp_mask
 from frontal3d.stages.ground_contacts import ContactEvidence, contact_evidence
@@ -434,8 +435,7 @@ def _hole_evidence(context: ClassifierContext, subtype: str) -> float:
     if hole.sum() < max(12, HOLE_SEEN_SHARE * spot.sum()):
         return 0.0
     radius = max(2, round(0.5 * np.sqrt(spot.sum() / np.pi)))
-    ring = (cv2.dilate(spot.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1,) * 2)) > 0)
-    ring &= ~spot & seen & (regions >= 0)
+    ring = within(spot, radius) & ~spot & seen & (regions >= 0)
     if ring.sum() < 12:
         return 0.0
     lightness = cv2.cvtColor(np.ascontiguousarray(context.image[..., :3], dtype=np.uint8), cv2.COLOR_RGB2LAB)[..., 0]

@@ -15,7 +15,7 @@ from typing import Any
 
 import cv2
 import numpy as np
-from frontal3d.masks import disc, mask_extent, pieces_touching
+from frontal3d.masks import disc, inset, mask_extent, opened, pieces_touching, within
 from frontal3d.stages.align import Similarity, warp_mask
 from frontal3d.stages.boundary import default_k, match_contours, trace_contour
 from frontal3d.stages.classify import Agreement, ClassifierContext, silhouette_agreement
@@ -123,7 +123,7 @@ def shown_in_front(detected: np.ndarray, image: np.ndarray, object_mask: np.ndar
     if not on_object.any() or np.count_nonzero(detected & ~object_mask) < MIN_COLOUR_REFERENCE:
         return detected
     window = max(3, round(COLOUR_VOTE_WINDOW * mask_extent(object_mask)))
-    grown = cv2.dilate(detected.astype(np.uint8), disc(max(1, window // 2))) > 0
+    grown = within(detected, max(1, window // 2))
     seen_object = object_mask & ~grown
     if np.count_nonzero(seen_object) < MIN_COLOUR_REFERENCE:
         return detected
@@ -138,8 +138,7 @@ def shown_in_front(detected: np.ndarray, image: np.ndarray, object_mask: np.ndar
 def hidden_by(occluders: np.ndarray, object_mask: np.ndarray) -> np.ndarray:
     """Pixels whose membership in the silhouette the occluders leave unknown: the occluders
     grown by OCCLUDER_REACH of the object's size (an arm's soft edge hides the outline too)."""
-    radius = max(1, round(OCCLUDER_REACH * mask_extent(object_mask)))
-    return cv2.dilate(np.asarray(occluders, dtype=np.uint8), disc(radius)) > 0
+    return within(occluders, max(1, round(OCCLUDER_REACH * mask_extent(object_mask))))
 
 
 def in_front(people: np.ndarray, object_mask: np.ndarray, aligned_template_mask: np.ndarray, mirror_axis: float | None = None) -> np.ndarray:
@@ -163,35 +162,34 @@ def in_front(people: np.ndarray, object_mask: np.ndarray, aligned_template_mask:
     """
     people = np.asarray(people, dtype=bool)
     off_object = ~np.asarray(object_mask, dtype=bool)
-    template = np.asarray(aligned_template_mask, dtype=np.uint8)
+    template = np.asarray(aligned_template_mask, dtype=bool)
     if not template.any():
         return np.zeros_like(people)
     size = mask_extent(template)
     if mirror_axis is not None and people.any():
-        line = find_mirror_line(~off_object, hidden_by(people, ~off_object), template > 0, mirror_axis)
+        line = find_mirror_line(~off_object, hidden_by(people, ~off_object), template, mirror_axis)
         if line is not None and line.usable:
-            template = template | reflected(~off_object, line.matrix).astype(np.uint8)
+            template = template | reflected(~off_object, line.matrix)
     radius = max(1, round(OCCLUDER_REACH * size))
-    unseen = off_object & (cv2.erode(template, disc(radius)) > 0)
+    unseen = off_object & inset(template, radius)
     _count, pieces = cv2.connectedComponents(unseen.astype(np.uint8))
     # The person segmenter's mask spills a few pixels over the object's edge (and takes in a
     # held object): only the person away from the object can vouch for a gap.
-    away = people & (cv2.dilate((~off_object).astype(np.uint8), disc(radius)) == 0)
+    away = people & ~within(~off_object, radius)
     near_people = cv2.dilate(away.astype(np.uint8), disc(1)) > 0
     touched = np.unique(pieces[near_people & unseen])
     inside = np.isin(pieces, touched[touched > 0])
     if not inside.any():
         return np.zeros_like(people)
-    claimed = (people | inside) & off_object & (cv2.dilate(inside.astype(np.uint8), disc(2 * radius)) > 0)
-    depth = disc(max(1, round(IN_FRONT_DEPTH * size)))
-    deep = cv2.morphologyEx(claimed.astype(np.uint8), cv2.MORPH_OPEN, depth)
-    kept = claimed & (cv2.dilate(deep, depth) > 0)
+    claimed = (people | inside) & off_object & within(inside, 2 * radius)
+    depth = max(1, round(IN_FRONT_DEPTH * size))
+    kept = claimed & within(opened(claimed, depth), depth)
     count, kept_pieces, stats, _centroids = cv2.connectedComponentsWithStats(kept.astype(np.uint8), connectivity=8)
     large = 1 + np.flatnonzero(stats[1:count, cv2.CC_STAT_AREA] >= IN_FRONT_MIN_AREA * size * size)
     found = np.isin(kept_pieces, large)
     # A person over a neck covers it on one side only next to the body: without this the
     # rebuilt outline stops at a gap there and the neck is lost.
-    slender = (template > 0) & (cv2.morphologyEx(template, cv2.MORPH_OPEN, depth) == 0) & off_object & (people | inside)
+    slender = template & ~opened(template, depth) & off_object & (people | inside)
     return found | _pieces_touching(slender, found)
 
 

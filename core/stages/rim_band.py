@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from frontal3d.masks import within
 from frontal3d.render import TemplateRenders
 from frontal3d.stages.align import Similarity, warp_labels
 
@@ -108,9 +109,9 @@ def _body_outline(mask: np.ndarray, body: np.ndarray, regions: np.ndarray, rende
     """Outline pixels (x, y) of the object next to the template's body and away from its neck, with unit inward normals."""
     mask_u8 = mask.astype(np.uint8)
     outline = mask & ~(cv2.erode(mask_u8, np.ones((3, 3), np.uint8)) > 0)
-    near_body = _dilated(body, BODY_REACH * width)
+    near_body = within(body, max(1, round(BODY_REACH * width)))
     if NECK_REGION in render.region_names:
-        near_body &= ~_dilated(regions == render.region_names.index(NECK_REGION), NECK_CLEARANCE * width)
+        near_body &= ~within(regions == render.region_names.index(NECK_REGION), max(1, round(NECK_CLEARANCE * width)))
     ys, xs = np.nonzero(outline & near_body)
     smooth = cv2.GaussianBlur(mask_u8.astype(np.float32), (0, 0), 1.5)
     gx = cv2.Sobel(smooth, cv2.CV_32F, 1, 0, ksize=3)[ys, xs]
@@ -119,11 +120,6 @@ def _body_outline(mask: np.ndarray, body: np.ndarray, regions: np.ndarray, rende
     keep = length > 1e-6
     inward = np.stack([gx[keep], gy[keep]], axis=1) / length[keep, None]
     return np.stack([xs[keep], ys[keep]], axis=1).astype(np.float32), inward.astype(np.float32)
-
-
-def _dilated(region: np.ndarray, radius: float) -> np.ndarray:
-    size = 2 * max(1, int(round(radius))) + 1
-    return cv2.dilate(region.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size))) > 0
 
 
 def _band_widths(lightness: np.ndarray, mask: np.ndarray, points: np.ndarray, inward: np.ndarray,
