@@ -9,6 +9,7 @@ import numpy as np
 import pygltflib
 import pytest
 import trimesh
+from PIL import Image
 
 import frontal3d.stages.export as export_module
 from frontal3d.errors import TemplateError
@@ -49,6 +50,26 @@ def test_glb_reloads_with_texture_and_named_landmarks(tmp_path, textured):
     material = gltf.materials[0]
     assert material.pbrMetallicRoughness.baseColorTexture is not None
     assert material.normalTexture is not None
+
+
+def test_glb_embeds_the_same_png_files_as_the_obj(tmp_path, textured):
+    paths = export_all(tmp_path / "model", textured, LANDMARKS, {}, preview_size=None)
+    gltf = pygltflib.GLTF2.load(str(paths["glb"]))
+    blob = gltf.binary_blob()
+
+    def embedded(texture_index: int) -> bytes:
+        view = gltf.bufferViews[gltf.images[gltf.textures[texture_index].source].bufferView]
+        return blob[view.byteOffset:view.byteOffset + view.byteLength]
+
+    material = gltf.materials[0]
+    assert embedded(material.pbrMetallicRoughness.baseColorTexture.index) == paths["texture"].read_bytes()
+    assert embedded(material.normalTexture.index) == paths["normal"].read_bytes()
+    np.testing.assert_array_equal(np.asarray(Image.open(paths["texture"])), textured.atlas)
+    np.testing.assert_array_equal(np.asarray(Image.open(paths["normal"])), textured.normal_map)
+    reloaded = next(iter(trimesh.load(paths["glb"]).geometry.values()))
+    np.testing.assert_allclose(reloaded.vertices, textured.mesh.vertices, atol=1e-6)
+    # the model in memory keeps its own textures
+    assert textured.mesh.visual.material.baseColorTexture.size == (textured.atlas.shape[1], textured.atlas.shape[0])
 
 
 def test_obj_mtl_textures_and_report_are_written(tmp_path, textured):

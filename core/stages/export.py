@@ -15,11 +15,13 @@ import json
 import os
 import shutil
 import tempfile
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pygltflib
+import trimesh
 from PIL import Image
 
 from frontal3d.errors import InputError, TemplateError
@@ -42,9 +44,37 @@ def _json_default(value: Any) -> Any:
     raise TypeError(f"report value of type {type(value).__name__} is not JSON serializable")
 
 
-def _glb_with_landmarks(textured: TexturedMesh, landmarks: dict[str, np.ndarray]) -> bytes:
-    """trimesh's GLB plus one named, empty child node per landmark under the model node."""
-    gltf = pygltflib.GLTF2.load_from_bytes(textured.mesh.export(file_type="glb"))
+def _encode_png(image: Image.Image) -> bytes:
+    """PNG bytes of an image (zlib level 6, PIL's default)."""
+    buffer = io.BytesIO()
+    image.save(buffer, format="png")
+    return buffer.getvalue()
+
+
+def _glb_with_landmarks(textured: TexturedMesh, landmarks: dict[str, np.ndarray], texture_png: bytes,
+                        normal_png: bytes) -> bytes:
+    """trimesh's GLB with the given PNGs as its textures, and one named, empty child node per
+    landmark under the model node.
+
+    trimesh would encode the atlas and normal map itself, a second time (a second each on a
+    phone photo's 13-megapixel atlas), so it exports 1 x 1 stand-ins whose bytes are swapped
+    for the PNGs the OBJ's files hold.
+    """
+    source = textured.mesh
+    original = source.visual.material
+    # Two different stand-ins: trimesh stores equal images once, in one buffer view.
+    material = trimesh.visual.material.PBRMaterial(
+        name=original.name, baseColorFactor=original.baseColorFactor, metallicFactor=original.metallicFactor,
+        roughnessFactor=original.roughnessFactor, baseColorTexture=Image.new("RGB", (1, 1), (0, 0, 0)),
+        normalTexture=Image.new("RGB", (1, 1), (255, 255, 255)))
+    stand_in = trimesh.Trimesh(vertices=source.vertices, faces=source.faces, process=False,
+                               visual=trimesh.visual.TextureVisuals(uv=source.visual.uv, material=material))
+    gltf = pygltflib.GLTF2.load_from_bytes(stand_in.export(file_type="glb"))
+    material = gltf.materials[0]
+    _swap_images(gltf, {
+        gltf.textures[material.pbrMetallicRoughness.baseColorTexture.index].source: texture_png,
+        gltf.textures[material.normalTexture.index].source: normal_png,
+    })
     model_node = next(i for i, node in enumerate(gltf.nodes) if node.mesh is not None)
     parent = gltf.nodes[model_node]
     parent.name = parent.name or "model"
@@ -52,6 +82,24 @@ def _glb_with_landmarks(textured: TexturedMesh, landmarks: dict[str, np.ndarray]
         gltf.nodes.append(pygltflib.Node(name=name, translation=[float(v) for v in position]))
         parent.children = [*(parent.children or []), len(gltf.nodes) - 1]
     return b"".join(gltf.save_to_bytes())
+
+
+def _swap_images(gltf: pygltflib.GLTF2, encoded: dict[int, bytes]) -> None:
+    """Give images (by index) new bytes: the binary buffer is laid out again, every view 4-byte aligned."""
+    blob = gltf.binary_blob()
+    new_bytes = {gltf.images[index].bufferView: data for index, data in encoded.items()}
+    pieces, offset = [], 0
+    for number, view in enumerate(gltf.bufferViews):
+        start = view.byteOffset or 0
+        data = new_bytes.get(number, blob[start:start + view.byteLength])
+        padding = -offset % 4
+        pieces.append(bytes(padding))
+        view.byteOffset, view.byteLength = offset + padding, len(data)
+        pieces.append(data)
+        offset += padding + len(data)
+    laid_out = b"".join(pieces) + bytes(-offset % 4)
+    gltf.buffers[0].byteLength = len(laid_out)
+    gltf.set_binary_blob(laid_out)
 
 
 def _obj_text(textured: TexturedMesh) -> str:
@@ -104,11 +152,16 @@ def _debug_image(array: np.ndarray) -> np.ndarray:
 
 def _write_all(folder: Path, textured: TexturedMesh, landmarks: dict[str, np.ndarray], report: dict,
                debug_maps: dict[str, np.ndarray], preview_size: int | None) -> list[str]:
-    (folder / "model.glb").write_bytes(_glb_with_landmarks(textured, landmarks))
+    # PIL encodes without holding the GIL: the two images take one encoding's time on two cores.
+    # The material's own images are encoded: no third copy of a 13-megapixel atlas.
+    material = textured.mesh.visual.material
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        texture_png, normal_png = pool.map(_encode_png, (material.baseColorTexture, material.normalTexture))
+    (folder / "model.glb").write_bytes(_glb_with_landmarks(textured, landmarks, texture_png, normal_png))
     (folder / "model.obj").write_text(_obj_text(textured))
     (folder / "model.mtl").write_text(_MTL_TEXT)
-    Image.fromarray(textured.atlas).save(folder / "texture.png")
-    Image.fromarray(textured.normal_map).save(folder / "normal.png")
+    (folder / "texture.png").write_bytes(texture_png)
+    (folder / "normal.png").write_bytes(normal_png)
     names = ["model.glb", "model.obj", "model.mtl", "texture.png", "normal.png"]
     if preview_size:
         from frontal3d.preview import render_preview  # open3d loads only when a preview is wanted
