@@ -6,8 +6,20 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from PIL import Image
 
 from frontal3d.errors import InputError
+
+#: EXIF Orientation (tag 274) -> how to turn the stored pixels into what a viewer shows.
+_EXIF_TURNS = {
+    2: lambda data: data[:, ::-1],
+    3: lambda data: data[::-1, ::-1],
+    4: lambda data: data[::-1],
+    5: lambda data: data.swapaxes(0, 1),
+    6: lambda data: np.rot90(data, -1),
+    7: lambda data: np.rot90(data, 2).swapaxes(0, 1),
+    8: lambda data: np.rot90(data, 1),
+}
 
 
 def read_image(path: Path) -> np.ndarray:
@@ -20,7 +32,23 @@ def read_image(path: Path) -> np.ndarray:
     data = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if data is None or data.size == 0:
         raise InputError(f"cannot read image {path}: not an image or unsupported format")
-    return as_rgb(data_from_cv2(data), str(path))
+    return as_rgb(data_from_cv2(_shown_upright(data, path)), str(path))
+
+
+def _shown_upright(data: np.ndarray, path: Path) -> np.ndarray:
+    """The pixels read from ``path`` turned as image viewers show them.
+
+    Phones store a portrait photo sideways with an EXIF Orientation tag; OpenCV ignores the
+    tag when it keeps the alpha channel (IMREAD_UNCHANGED), so without this a guitar held
+    upright arrived lying down, and a mask painted over the photo as shown did not fit it.
+    """
+    try:
+        with Image.open(path) as image:
+            orientation = image.getexif().get(274, 1)
+    except (OSError, ValueError):  # a format only OpenCV reads carries no tag we can see
+        return data
+    turn = _EXIF_TURNS.get(orientation)
+    return np.ascontiguousarray(turn(data)) if turn else data
 
 
 def data_from_cv2(data: np.ndarray) -> np.ndarray:
@@ -62,6 +90,7 @@ def read_mask(path: Path, shape: tuple[int, int]) -> np.ndarray:
     data = cv2.imread(str(path), cv2.IMREAD_UNCHANGED) if path.is_file() else None
     if data is None:
         raise InputError(f"cannot read mask {path}: no such file or not an image")
+    data = _shown_upright(data, path)
     if data.ndim == 3:
         data = data[..., 3] if data.shape[2] == 4 else data.max(axis=2)
     h, w = shape

@@ -1,0 +1,44 @@
+"""Reading photos: what a viewer shows is what the pipeline gets."""
+
+import numpy as np
+import pytest
+from PIL import Image, ImageOps
+
+from frontal3d.imageio import read_image, read_mask
+
+EXIF_ORIENTATION = 274
+
+
+def _save_with_orientation(path, pixels: np.ndarray, orientation: int, **options) -> None:
+    image = Image.fromarray(pixels)
+    exif = image.getexif()
+    exif[EXIF_ORIENTATION] = orientation
+    image.save(path, exif=exif, **options)
+
+
+@pytest.mark.parametrize("orientation", range(1, 9))
+def test_every_exif_orientation_is_shown_upright_with_its_alpha(tmp_path, orientation):
+    rng = np.random.default_rng(orientation)
+    stored = rng.integers(0, 256, (24, 40, 4), dtype=np.uint8)  # lopsided: any wrong turn shows
+    path = tmp_path / "photo.png"
+    _save_with_orientation(path, stored, orientation)
+    with Image.open(path) as image:
+        shown = np.asarray(ImageOps.exif_transpose(image))
+    np.testing.assert_array_equal(read_image(path), shown)
+
+
+def test_a_portrait_phone_photo_and_its_mask_come_upright(tmp_path):
+    """Phones store portrait photos sideways (Orientation 6: turn 90 degrees clockwise to show)."""
+    upright = np.zeros((80, 48, 3), np.uint8)
+    upright[10:70, 14:34] = (200, 120, 40)  # a tall object, as the user sees it
+    photo = tmp_path / "IMG_0001.jpg"
+    _save_with_orientation(photo, np.rot90(upright, 1), 6, quality=95)
+    image = read_image(photo)
+    assert image.shape == (80, 48, 3)
+    seen = image[..., 0] > 100
+    expected = upright[..., 0] > 100
+    assert (seen & expected).sum() / (seen | expected).sum() > 0.95  # JPEG's loss only
+    painted = tmp_path / "mask.png"
+    Image.fromarray((upright.any(axis=2) * 255).astype(np.uint8)).save(painted)
+    mask = read_mask(painted, image.shape[:2])
+    assert mask[40, 24] and not mask[5, 5]
