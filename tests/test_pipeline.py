@@ -15,6 +15,8 @@ from frontal3d.errors import NotFrontalError
 from frontal3d.evaluate import voxel_iou
 from frontal3d.photo_render import frontal_camera, render_frontal
 from frontal3d.plugins import Plugins
+from frontal3d.stages import align
+from frontal3d.stages.align import Similarity
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "sportscar.png"
 
@@ -66,6 +68,25 @@ def test_silhouette_of_the_mesh_matches_the_input_mask(plugins):
     iou = (rendered & cropped).sum() / (rendered | cropped).sum()
     assert iou > 0.95
     assert result.report["subtype"] == "electric"
+
+
+@pytest.mark.parametrize("scale, expected_source", [(1.3, "classifier"), (1.01, "mutual information")])
+def test_an_alignment_gone_astray_gives_way_to_the_classifiers_placement(plugins, monkeypatch, scale, expected_source):
+    """Mutual information weighs the photo's grey image and can end far off the outline (a
+    sunburst guitar photo: outline IoU 0.73 against the classifier's 0.82): then the classifier's
+    placement stands; a placement within ``MI_OUTLINE_SLACK`` of it is kept."""
+    rgba, _ = _template_photo(plugins, "guitar", "electric")
+    clean = frontal3d.reconstruct(rgba, "guitar", plugins=plugins)
+    real_align = align.align_template
+
+    def pushed_off(*args, **kwargs):
+        placed, diagnostics = real_align(*args, **kwargs)
+        return Similarity(placed.scale * scale, placed.angle, placed.tx, placed.ty), diagnostics
+
+    monkeypatch.setattr(align, "align_template", pushed_off)
+    result = frontal3d.reconstruct(rgba, "guitar", plugins=plugins)
+    assert result.report["alignment"]["source"].startswith(expected_source)
+    assert result.report["mesh"]["size_m"] == pytest.approx(clean.report["mesh"]["size_m"], rel=0.03)
 
 
 def test_mask_with_a_hole_and_a_separate_blob(plugins):
