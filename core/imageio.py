@@ -45,7 +45,7 @@ def _shown_upright(data: np.ndarray, path: Path) -> np.ndarray:
     try:
         with Image.open(path) as image:
             orientation = image.getexif().get(274, 1)
-    except (OSError, ValueError):  # a format only OpenCV reads carries no tag we can see
+    except (OSError, ValueError, Image.DecompressionBombError):  # a format only OpenCV reads, or over PIL's size limit
         return data
     turn = _EXIF_TURNS.get(orientation)
     return np.ascontiguousarray(turn(data)) if turn else data

@@ -203,12 +203,14 @@ def _fuselage_depth_over_length(mesh: trimesh.Trimesh) -> float:
 
 
 def test_length_depth_keeps_a_wide_span_plane_as_deep_as_it_is_long(plugins):
-    """A plane with 40 % more span than the template: with depth_scale=length its fuselage keeps
-    the template's depth for its length; scaled by the alignment alone it comes out too deep."""
+    """A plane with 60 % more span than the template, which the placement follows: with
+    depth_scale=length its fuselage keeps the template's depth for its length; scaled by the
+    alignment alone it comes out too deep. (At 40 % more span the best-fitting placement
+    follows the length instead, and both depths come out right.)"""
     import cv2
 
     rgba, template = _template_photo(plugins, "airplane", "light")
-    wide = cv2.resize(rgba, (int(rgba.shape[1] * 1.4), rgba.shape[0]), interpolation=cv2.INTER_NEAREST)
+    wide = cv2.resize(rgba, (int(rgba.shape[1] * 1.6), rgba.shape[0]), interpolation=cv2.INTER_NEAREST)
     expected = _fuselage_depth_over_length(template.mesh)
     by_length = frontal3d.reconstruct(wide, "airplane", subtype="light", plugins=plugins, depth_scale="length")
     by_alignment = frontal3d.reconstruct(wide, "airplane", subtype="light", plugins=plugins, depth_scale="global")
