@@ -25,7 +25,7 @@ from frontal3d.render import TemplateRenders
 from frontal3d.stages.align import Similarity, align_template, placed_off_grid, warp_labels, warp_mask
 from frontal3d.stages.ground_contacts import ContactEvidence, contact_evidence
 from frontal3d.stages.mirror_symmetry import MirrorEvidence, mirror_evidence
-from frontal3d.stages.neck_parallax import ParallaxEvidence, parallax_evidence
+from frontal3d.stages.neck_parallax import NO_NECK_FILL, ParallaxEvidence, neck_fill, parallax_evidence
 from frontal3d.stages.rim_band import RimEvidence, rim_evidence
 from frontal3d.stages.turned_views import TurnEvidence, turn_evidence
 from frontal3d.stages.underside import UndersideEvidence, underside_evidence
@@ -147,6 +147,10 @@ class ClassifierContext:
         """How far the neck sits off the body's midline, in the best-agreeing template's frame."""
         return self._on_best_template("parallax", lambda render, similarity: parallax_evidence(self.object_mask, render, similarity))
 
+    def neck_fill(self) -> float | None:
+        """How much of the band around the best-agreeing template's neck the outline fills (None: no neck)."""
+        return self._on_best_template("neck_fill", lambda render, similarity: neck_fill(self.object_mask, render, similarity))
+
     def rim_evidence(self) -> RimEvidence:
         """Side-wall band widths along the body's outline, by direction, in the best-agreeing template's frame."""
         return self._on_best_template("rim", lambda render, similarity: rim_evidence(self.image, self.object_mask, render, similarity))
@@ -217,7 +221,7 @@ def silhouette_agreement(object_mask: np.ndarray, renders: dict[str, TemplateRen
 class FrontalGate:
     """Rejects views too far from the family's canonical view (the paper allows about ±10°).
 
-    Five silhouette tests and three image tests, all training-free:
+    Silhouette and image tests, all training-free:
 
     - score = best over subtypes of IoU x :func:`foreshortening` must reach the family's
       ``frontal_threshold``: IoU alone barely drops when a car turns (a front view of a
@@ -260,6 +264,13 @@ class FrontalGate:
       ``underside_margin`` of its length (see :mod:`frontal3d.stages.underside`). This catches
       a car rolled about its length axis, bottom towards the camera, whose floor comes into
       view; off (1.0) unless the family sets it, skipped when the outline is partly hidden.
+    - the outline may not fill more than ``neck_fill_margin`` of a band five neck widths wide
+      around the placed template's neck, nor less than ``NO_NECK_FILL`` (see
+      :func:`frontal3d.stages.neck_parallax.neck_fill`). This is no turn: it catches an
+      outline only the template's body fits (a limousine seen from the front three-quarter,
+      its bonnet where the neck goes, or the neck laid off it), which the agreement alone let
+      pass at 0.48; off (1.0) unless the family sets it, skipped when the outline is partly
+      hidden (a person's arm along a neck widens it, one across it cuts it).
 
     ``frontal_threshold`` 0 switches the gate off (evaluation runs on known-frontal data).
     """
@@ -288,7 +299,7 @@ class FrontalGate:
                     continue
                 evidence = judge(context, margin)
                 if evidence:
-                    reason = f"the {family.name} looks turned{evidence}; this family needs {view}"
+                    reason = f"the {family.name} {evidence}; this family needs {view}"
                     return Decision(name=self.name, label="not frontal", confidence=best, accepted=False, reason=reason)
         reason = f"the {family.name} matches a {family.canonical_view} view (silhouette agreement {best:.2f} >= {threshold:.2f})"
         return Decision(name=self.name, label="frontal", confidence=best, accepted=True, reason=reason)
@@ -300,7 +311,7 @@ def _turned_template(context: ClassifierContext, margin: float) -> str | None:
     if evidence.margin >= -margin:
         return None
     direction = "sideways" if evidence.turned_axis == "yaw" else "up or down"
-    return (f" about {abs(evidence.turned_degrees):.0f}° {direction} from a {context.family.canonical_view} view (a turned "
+    return (f"looks turned about {abs(evidence.turned_degrees):.0f}° {direction} from a {context.family.canonical_view} view (a turned "
             f"template fits its outline better: {evidence.turned_iou:.2f} vs {evidence.frontal_iou:.2f})")
 
 
@@ -309,7 +320,7 @@ def _lopsided(context: ClassifierContext, margin: float) -> str | None:
     mirror = context.mirror_evidence()
     if mirror.asymmetry <= margin:
         return None
-    return (f" about its length axis: its outline is lopsided (mirror agreement {mirror.object_iou:.2f} vs the "
+    return (f"looks turned about its length axis: its outline is lopsided (mirror agreement {mirror.object_iou:.2f} vs the "
             f"template's {mirror.template_iou:.2f})")
 
 
@@ -318,7 +329,7 @@ def _neck_beside_midline(context: ClassifierContext, margin: float) -> str | Non
     parallax = context.parallax_evidence()
     if abs(parallax.offset) <= margin:
         return None
-    return (f" sideways: its neck runs {abs(parallax.offset):.1%} of the body's width beside the body's midline "
+    return (f"looks turned sideways: its neck runs {abs(parallax.offset):.1%} of the body's width beside the body's midline "
             f"(at most {margin:.1%} in a {context.family.canonical_view} view)")
 
 
@@ -327,7 +338,7 @@ def _side_wall_shows(context: ClassifierContext, margin: float) -> str | None:
     rim = context.rim_evidence()
     if rim.asymmetry <= margin:
         return None
-    return (f": its side wall shows along its {rim.side} edge as a band {rim.asymmetry:.1%} of the body's width wider "
+    return (f"looks turned: its side wall shows along its {rim.side} edge as a band {rim.asymmetry:.1%} of the body's width wider "
             f"than along the opposite edge (at most {margin:.1%} in a {context.family.canonical_view} view)")
 
 
@@ -341,7 +352,7 @@ def _neck_and_wall_agree(context: ClassifierContext, margin: float) -> str | Non
     share = 0.5 * (abs(offset) / context.margin("parallax_margin") + abs(wall) / context.margin("rim_margin"))
     if share <= margin:
         return None
-    return (f" sideways: its neck runs {abs(offset):.1%} of the body's width beside the body's midline and its side wall "
+    return (f"looks turned sideways: its neck runs {abs(offset):.1%} of the body's width beside the body's midline and its side wall "
             f"shows {abs(wall):.1%} of it wider on the {'left' if wall > 0 else 'right'}, as one turn about the neck makes "
             f"(on average {share:.0%} of those tests' margins, at most {margin:.0%} in a {context.family.canonical_view} view)")
 
@@ -351,8 +362,17 @@ def _far_wheels_show(context: ClassifierContext, margin: float) -> str | None:
     contacts = context.contact_evidence()
     if contacts.split <= margin:
         return None
-    return (f" sideways: it stands on {contacts.runs} separate ground contacts, the far side's beside the near side's "
+    return (f"looks turned sideways: it stands on {contacts.runs} separate ground contacts, the far side's beside the near side's "
             f"({contacts.split:.0%} of its length apart; a {context.family.canonical_view} view shows one per axle)")
+
+
+def _neck_not_slender(context: ClassifierContext, margin: float) -> str | None:
+    """The outline is wide where the template's neck lies (:func:`frontal3d.stages.neck_parallax.neck_fill`)."""
+    fill = context.neck_fill()
+    if fill is None or NO_NECK_FILL <= fill <= margin:
+        return None
+    return (f"has no neck where its template's lies: the outline fills {fill:.0%} of the band around the template's neck "
+            f"({NO_NECK_FILL:.0%} to {margin:.0%} in a {context.family.canonical_view} view)")
 
 
 def _floor_shows(context: ClassifierContext, margin: float) -> str | None:
@@ -360,7 +380,7 @@ def _floor_shows(context: ClassifierContext, margin: float) -> str | None:
     underside = context.underside_evidence()
     if underside.band <= margin:
         return None
-    return (f" about its length axis: its floor shows below the sill as a dark band {underside.band:.0%} of its length "
+    return (f"looks turned about its length axis: its floor shows below the sill as a dark band {underside.band:.0%} of its length "
             f"tall (at most {margin:.0%} in a {context.family.canonical_view} view)")
 
 
@@ -377,6 +397,7 @@ TURN_TESTS: tuple[tuple[str, Callable[[ClassifierContext, float], str | None], b
     ("neck_wall_margin", _neck_and_wall_agree, True),
     ("contact_pair_margin", _far_wheels_show, True),
     ("underside_margin", _floor_shows, True),
+    ("neck_fill_margin", _neck_not_slender, True),
 )
 
 
