@@ -25,7 +25,7 @@ from frontal3d.render import TemplateRenders
 from frontal3d.stages.align import Similarity, align_template, placed_off_grid, warp_labels, warp_mask
 from frontal3d.stages.ground_contacts import ContactEvidence, contact_evidence
 from frontal3d.stages.mirror_symmetry import MirrorEvidence, mirror_evidence
-from frontal3d.stages.neck_parallax import NO_NECK_FILL, ParallaxEvidence, neck_fill, parallax_evidence
+from frontal3d.stages.neck_parallax import NECK_WINDOW, WIDE_NECK_FILL, ParallaxEvidence, neckless_share, parallax_evidence
 from frontal3d.stages.rim_band import RimEvidence, rim_evidence
 from frontal3d.stages.turned_views import TurnEvidence, turn_evidence
 from frontal3d.stages.underside import UndersideEvidence, underside_evidence
@@ -147,9 +147,9 @@ class ClassifierContext:
         """How far the neck sits off the body's midline, in the best-agreeing template's frame."""
         return self._on_best_template("parallax", lambda render, similarity: parallax_evidence(self.object_mask, render, similarity))
 
-    def neck_fill(self) -> float | None:
-        """How much of the band around the best-agreeing template's neck the outline fills (None: no neck)."""
-        return self._on_best_template("neck_fill", lambda render, similarity: neck_fill(self.object_mask, render, similarity))
+    def neckless_share(self) -> float | None:
+        """Share of the best-agreeing template's lower-neck rows where the outline shows no neck (None: no neck)."""
+        return self._on_best_template("neckless", lambda render, similarity: neckless_share(self.object_mask, render, similarity))
 
     def rim_evidence(self) -> RimEvidence:
         """Side-wall band widths along the body's outline, by direction, in the best-agreeing template's frame."""
@@ -264,12 +264,12 @@ class FrontalGate:
       ``underside_margin`` of its length (see :mod:`frontal3d.stages.underside`). This catches
       a car rolled about its length axis, bottom towards the camera, whose floor comes into
       view; off (1.0) unless the family sets it, skipped when the outline is partly hidden.
-    - the outline may not fill more than ``neck_fill_margin`` of a band five neck widths wide
-      around the placed template's neck, nor less than ``NO_NECK_FILL`` (see
-      :func:`frontal3d.stages.neck_parallax.neck_fill`). This is no turn: it catches an
+    - across at most ``neckless_margin`` of the placed template's lower-neck rows may the
+      outline show no neck: nothing, or more than 1.5 necks' width (see
+      :func:`frontal3d.stages.neck_parallax.neckless_share`). This is no turn: it catches an
       outline only the template's body fits (a limousine seen from the front three-quarter,
-      its bonnet where the neck goes, or the neck laid off it), which the agreement alone let
-      pass at 0.48; off (1.0) unless the family sets it, skipped when the outline is partly
+      the template's neck over its bonnet or off it), which the agreement alone let pass at
+      0.47-0.48; off (1.0) unless the family sets it, skipped when the outline is partly
       hidden (a person's arm along a neck widens it, one across it cuts it).
 
     ``frontal_threshold`` 0 switches the gate off (evaluation runs on known-frontal data).
@@ -366,13 +366,14 @@ def _far_wheels_show(context: ClassifierContext, margin: float) -> str | None:
             f"({contacts.split:.0%} of its length apart; a {context.family.canonical_view} view shows one per axle)")
 
 
-def _neck_not_slender(context: ClassifierContext, margin: float) -> str | None:
-    """The outline is wide where the template's neck lies (:func:`frontal3d.stages.neck_parallax.neck_fill`)."""
-    fill = context.neck_fill()
-    if fill is None or NO_NECK_FILL <= fill <= margin:
+def _no_neck(context: ClassifierContext, margin: float) -> str | None:
+    """The outline shows no neck where the template's lies (:func:`frontal3d.stages.neck_parallax.neckless_share`)."""
+    share = context.neckless_share()
+    if share is None or share <= margin:
         return None
-    return (f"has no neck where its template's lies: the outline fills {fill:.0%} of the band around the template's neck "
-            f"({NO_NECK_FILL:.0%} to {margin:.0%} in a {context.family.canonical_view} view)")
+    return (f"has no neck where its template's lies: across {share:.0%} of the template's lower neck the outline is "
+            f"missing or wider than {WIDE_NECK_FILL * 2 * NECK_WINDOW:.1f} necks (at most {margin:.0%} in a "
+            f"{context.family.canonical_view} view)")
 
 
 def _floor_shows(context: ClassifierContext, margin: float) -> str | None:
@@ -397,7 +398,7 @@ TURN_TESTS: tuple[tuple[str, Callable[[ClassifierContext, float], str | None], b
     ("neck_wall_margin", _neck_and_wall_agree, True),
     ("contact_pair_margin", _far_wheels_show, True),
     ("underside_margin", _floor_shows, True),
-    ("neck_fill_margin", _neck_not_slender, True),
+    ("neckless_margin", _no_neck, True),
 )
 
 

@@ -51,9 +51,10 @@ MIN_INLIER_SHARE = 0.6
 #: Largest gap (share of the body's width) a turn can make: a guitar's neck stands at most about a
 #: sixth of the body's width in front of its mid-plane. A larger gap is a damaged mask, not a turn.
 MAX_TURN_OFFSET = 0.25
-#: Below this share of the band around the template's neck, nothing lies where the neck goes (a
-#: guitar's neck fills 0.12-0.23 of it on the shared renders, 0.14-0.20 on synthetic ones).
+#: Shares of the band around the template's neck (2 x NECK_WINDOW neck widths) outside which a row of
+#: the outline is no neck: under the first nothing lies there, over the second it is 1.5 necks wide.
 NO_NECK_FILL = 0.05
+WIDE_NECK_FILL = 0.3
 _TEMPLATE_CACHE: dict[str, "_Layout | None"] = {}
 _CACHE_LIMIT = 32
 
@@ -166,14 +167,16 @@ def _robust_line(rows: np.ndarray, centres: np.ndarray) -> tuple[np.ndarray, np.
     return line, inliers
 
 
-def neck_fill(object_mask: np.ndarray, render: TemplateRenders, similarity: Similarity) -> float | None:
-    """Share of the window around the template's neck (NECK_WINDOW neck widths either side of its
-    centre) that the object fills, median over the neck rows the parallax uses; None when the
-    template has no neck above a body.
 
-    A guitar's neck fills about one window width in five, as the template's does. An outline only a
-    guitar's body fits, with the template's neck laid over more of the object (a limousine's
-    bonnet), fills much more of it.
+def neckless_share(object_mask: np.ndarray, render: TemplateRenders, similarity: Similarity) -> float | None:
+    """Share of the template's lower-neck rows (the rows the parallax uses) where the outline shows
+    no neck: within NECK_WINDOW neck widths of the neck's centre it fills under NO_NECK_FILL of the
+    band, or more than WIDE_NECK_FILL. None when the template has no neck above a body.
+
+    A guitar's neck fills 0.12-0.25 of each row's band (shared renders, synthetic samples, photos;
+    its share is 0). An outline that only a guitar's body fits has the template's neck laid over a
+    wider part (a limousine's bonnet) or off the object, in most rows (0.38-1.0 on the shared car
+    and airplane photos, scaled, turned and re-saved).
     """
     layout = _layout(render)
     if layout is None:
@@ -182,4 +185,5 @@ def neck_fill(object_mask: np.ndarray, render: TemplateRenders, similarity: Simi
     if high <= low:
         return None
     mask = warp_mask(object_mask, similarity.inverse(), render.mask.shape)
-    return float(np.median(mask[layout.neck_rows, low:high].sum(axis=1)) / (high - low))
+    fill = mask[layout.neck_rows, low:high].sum(axis=1) / (high - low)
+    return float(np.mean((fill < NO_NECK_FILL) | (fill > WIDE_NECK_FILL)))
