@@ -386,7 +386,8 @@ def _floor_shows(context: ClassifierContext, margin: float) -> str | None:
 
 
 #: The frontal gate's tests after the agreement threshold, in order: (setting holding the margin,
-#: judge returning what gives the turn away or None, skipped when the outline is partly hidden).
+#: judge returning what gives the view away, as the clause after "the <family>", or None; skipped
+#: when the outline is partly hidden).
 #: An arm across the object, or a person beside it whose pixels may be the object's, bites into
 #: the outline (which a turned template may then fit better), makes it lopsided, cuts a neck or a
 #: wheel, or hides a side wall: only whole outlines are judged by those. A margin of 1 or more switches a test off.
