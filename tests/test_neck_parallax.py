@@ -119,7 +119,6 @@ def test_parallax_test_does_not_judge_an_outline_a_person_beside_it_may_hide(gui
     assert FrontalGate().classify(context).accepted
 
 
-
 @pytest.mark.parametrize("necks_wide", [2.0, 3.0])
 def test_an_outline_only_the_body_fits_has_no_neck_and_is_turned_down(guitar, template, necks_wide):
     """The slab guitar with a block ``necks_wide`` necks wide over the lower neck (a limousine's bonnet

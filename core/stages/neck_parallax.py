@@ -167,7 +167,6 @@ def _robust_line(rows: np.ndarray, centres: np.ndarray) -> tuple[np.ndarray, np.
     return line, inliers
 
 
-
 def neckless_share(object_mask: np.ndarray, render: TemplateRenders, similarity: Similarity) -> float | None:
     """Share of the template's lower-neck rows (the rows the parallax uses) where the outline shows
     no neck: within NECK_WINDOW neck widths of the neck's centre it fills under NO_NECK_FILL of the
