@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 from PIL import Image, ImageOps
 
+from frontal3d.errors import InputError
 from frontal3d.imageio import read_image, read_mask
 
 EXIF_ORIENTATION = 274
@@ -42,3 +43,32 @@ def test_a_portrait_phone_photo_and_its_mask_come_upright(tmp_path):
     Image.fromarray((upright.any(axis=2) * 255).astype(np.uint8)).save(painted)
     mask = read_mask(painted, image.shape[:2])
     assert mask[40, 24] and not mask[5, 5]
+
+
+def _cut_in_half(path) -> None:
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+
+
+@pytest.mark.parametrize("suffix", [".jpg", ".png"])
+def test_a_photo_cut_short_is_a_one_line_error_not_a_half_grey_photo(tmp_path, suffix):
+    """OpenCV decodes a JPEG cut short with its lower half grey, and says so only on stderr."""
+    rng = np.random.default_rng(3)
+    pixels = rng.integers(0, 256, (96, 128, 3), dtype=np.uint8)
+    photo = tmp_path / f"photo{suffix}"
+    Image.fromarray(pixels).save(photo)
+    assert read_image(photo).shape == (96, 128, 3)  # whole, it reads
+    _cut_in_half(photo)
+    with pytest.raises(InputError, match=f"cannot read image {photo}: the file is cut short"):
+        read_image(photo)
+
+
+def test_a_mask_cut_short_is_a_one_line_error(tmp_path):
+    mask = np.zeros((96, 128), np.uint8)
+    mask[20:70, 30:100] = 255
+    path = tmp_path / "mask.jpg"
+    Image.fromarray(mask).save(path)
+    assert read_mask(path, (96, 128)).any()
+    _cut_in_half(path)
+    with pytest.raises(InputError, match="cannot read mask .*: the file is cut short"):
+        read_mask(path, (96, 128))
