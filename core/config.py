@@ -45,6 +45,7 @@ CORE_FAMILY_SETTINGS: dict[str, Any] = {
     "back_texture": "mirror_front",  # name of a back-texture rule
     "back_texture_params": {},  # passed to the back-texture rule
     "bump_strength": 1.0,  # normal-map strength from texture derivatives
+    "max_texture_side": 8192,  # longest side of the texture atlas in pixels (front and back side by side); larger photos are textured at a lower resolution; 0 = the photo's full resolution
     "size_m": 0.0,  # longest side of the output in metres; 0 = the template's real size
     "template_path": "",  # a user mesh to use instead of the built-in template
     "weights": {},  # learned-model checkpoints by model name (segmenter, frontal, subtype, regions)

@@ -429,8 +429,12 @@ def _reconstruct_shape_and_texture(
 
     with report.stage("texture", progress):
         full_crop = rgb[crop.y0 : crop.y0 + crop.height, crop.x0 : crop.x0 + crop.width, :3]
+        texture_scale = _texture_scale(crop, int(settings["max_texture_side"]))
+        texture_size = (max(1, round(crop.width * texture_scale)), max(1, round(crop.height * texture_scale)))
+        if texture_scale < 1.0:
+            report.warn(f"texture kept at {texture_scale:.2f} of the photo's resolution: its atlas (front and back side by side) "
+                        f"would be wider than max_texture_side = {settings['max_texture_side']} px")
         full_mask = cv2.resize(work_mask.astype(np.uint8), (crop.width, crop.height), interpolation=cv2.INTER_NEAREST) > 0
-        full_regions = cv2.resize(regions.astype(np.int16), (crop.width, crop.height), interpolation=cv2.INTER_NEAREST).astype(np.int32)
         full_occluded = cv2.resize(occluded.astype(np.uint8), (crop.width, crop.height), interpolation=cv2.INTER_NEAREST) > 0
         if full_occluded.any() or people_near.any():
             # Next to people judged behind, the working grid's coarse outline still takes in
@@ -439,13 +443,19 @@ def _reconstruct_shape_and_texture(
             full_occluders = None if occluders is None else occluders[window]
             full_occluded = occlusion.occluded_at_full_resolution(full_occluded, full_mask, object_mask[window], full_occluders)
         report.data["occlusion"]["inpainted_pixels"] = int(np.count_nonzero(full_occluded & full_mask))
+        if texture_scale < 1.0:
+            full_crop = cv2.resize(full_crop, texture_size, interpolation=cv2.INTER_AREA)
+            full_mask = cv2.resize(work_mask.astype(np.uint8), texture_size, interpolation=cv2.INTER_NEAREST) > 0
+            # Any texel an occluded pixel falls in is inpainted, so no occluder colour is averaged in.
+            full_occluded = cv2.resize(full_occluded.astype(np.uint8) * 255, texture_size, interpolation=cv2.INTER_AREA) > 0
+        full_regions = cv2.resize(regions.astype(np.int16), texture_size, interpolation=cv2.INTER_NEAREST).astype(np.int32)
         back_rules = {}
         for rules in plugins.hook.frontal3d_back_texture_rules():
             back_rules.update(rules)
         back_rule = _rule([back_rules], settings["back_texture"], "back_texture")
         textured = texture.build_textured_mesh(
             result, full_crop, full_mask, full_regions, full_occluded, renders.region_names,
-            back_rule, dict(settings["back_texture_params"]), working_to_full=1.0 / crop.scale,
+            back_rule, dict(settings["back_texture_params"]), working_to_full=texture_scale / crop.scale,
             bump_strength=float(settings["bump_strength"]),
         )
 
@@ -811,6 +821,14 @@ def run_classifiers(plugins: Plugins, rgb: np.ndarray, object_mask: np.ndarray, 
     if picked is None:
         picked = fam.subtypes[0]
     return decisions, picked, renders_by_subtype, context
+
+
+def _texture_scale(crop: _Crop, max_side: int) -> float:
+    """The share of the photo's resolution the texture keeps: all of it unless the atlas,
+    the crop's front and back side by side, would be wider or taller than ``max_side``
+    (0 = no limit). Game engines and VR headsets load textures up to 4096-16384 px a side."""
+    longest = max(crop.height, 2 * crop.width)
+    return 1.0 if max_side <= 0 or longest <= max_side else max_side / longest
 
 
 def _working_similarity(full_similarity: align.Similarity, crop: _Crop) -> align.Similarity:

@@ -10,7 +10,7 @@ import trimesh
 from frontal3d.family import Family, Template
 from frontal3d.render import TemplateRenders, render_template
 from frontal3d.stages.align import Similarity, placed_off_grid, warp_mask
-from frontal3d.stages.classify import ClassifierContext, FrontalGate, SubtypeClassifier, silhouette_agreement
+from frontal3d.stages.classify import ClassifierContext, FrontalGate, SubtypeClassifier, foreshortening, silhouette_agreement
 
 FAMILY = Family(name="guitar", subtypes=("classical", "electric"), canonical_view="front",
                 regions={"classical": ("body", "hole"), "electric": ("body",)},
@@ -212,3 +212,16 @@ def test_the_chain_rejects_a_side_on_guitar_and_says_which_view_it_needs(subtype
     rgba = render_frontal(mesh, frontal_camera(mesh, 256, 0.8))
     with pytest.raises(NotFrontalError, match="front view of the guitar's face"):
         frontal3d.reconstruct(rgba, "guitar", plugins=plugins, template_resolution=128, working_resolution=128)
+
+
+@pytest.mark.parametrize("degrees", [0.0, 40.0])
+def test_foreshortening_reads_the_squeeze_along_the_template_axis_wherever_the_template_lies(degrees):
+    """A view turned by a about the template's up axis squeezes its width by cos(a); placed anywhere, any angle, any size."""
+    template = np.zeros((200, 200), np.uint8)
+    cv2.ellipse(template, (100, 100), (40, 80), 0, 0, 360, 1, -1)
+    squeeze = np.cos(np.deg2rad(degrees))
+    squeezed = cv2.warpAffine(template, np.array([[squeeze, 0, 100 * (1 - squeeze)], [0, 1, 0]]), (200, 200), flags=cv2.INTER_NEAREST) > 0
+    placement = Similarity(7.5, np.deg2rad(35.0), 900.0, 400.0)  # a big photo: 2,600 x 2,400 px
+    photo_mask = warp_mask(squeezed, placement, (2400, 2600))
+    renders = _renders_from_masks(template > 0, template.astype(np.int32), ("body",))
+    assert foreshortening(photo_mask, renders, placement) == pytest.approx(squeeze, abs=0.01)

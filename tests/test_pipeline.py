@@ -249,3 +249,23 @@ def test_shape_prior_keeps_a_clean_photo_and_never_touches_a_given_mask(plugins)
     assert result.report["shape_prior_changed_pixels"] < 0.02 * mask.sum()
     given = frontal3d.reconstruct(photo, "airplane", mask=mask, shape_prior=True, frontal_threshold=0, plugins=plugins)
     assert "shape_prior_changed_pixels" not in given.report
+
+
+def test_a_texture_too_large_for_game_engines_is_kept_within_max_texture_side(plugins):
+    """The atlas (front and back side by side) stays within the limit, says so, and still lines up with the model."""
+    full = frontal3d.reconstruct(EXAMPLE, "car", plugins=plugins)
+    capped = frontal3d.reconstruct(EXAMPLE, "car", plugins=plugins, max_texture_side=300)
+    assert max(full.textured.atlas.shape[:2]) > 600  # the photo's resolution: no warning
+    assert not any("max_texture_side" in w for w in full.report["warnings"])
+    assert max(capped.textured.atlas.shape[:2]) <= 300
+    assert any("max_texture_side = 300" in w for w in capped.report["warnings"])
+    assert len(capped.mesh.vertices) == len(full.mesh.vertices)  # the same shape, only the texture is coarser
+    # Same UVs on both atlases, so each vertex's colour must agree with the full texture's (the car's dark
+    # wheels beside its red body would show any shift).
+    colours = []
+    for result in (full, capped):
+        atlas, uv = result.textured.atlas, result.textured.mesh.visual.uv
+        rows = np.clip(((1.0 - uv[:, 1]) * atlas.shape[0]).astype(int), 0, atlas.shape[0] - 1)
+        cols = np.clip((uv[:, 0] * atlas.shape[1]).astype(int), 0, atlas.shape[1] - 1)
+        colours.append(atlas[rows, cols].astype(np.float64))
+    assert np.median(np.abs(colours[0] - colours[1])) < 12

@@ -554,17 +554,24 @@ def foreshortening(object_mask: np.ndarray, render: TemplateRenders, similarity:
     per-axis spreads (object over template, in the template's frame), smaller over larger.
     With ``hidden`` pixels both spreads are taken outside them only (the object's and the
     placed template's): a person over a guitar's lower body shortens the object seen, not
-    the view, and the template loses the same part.
+    the view, and the template loses the same part. The spreads come from image moments,
+    not pixel lists: on a 50-megapixel photo the lists took 2 s per subtype.
     """
-    to_template = similarity.inverse()
-    object_points = np.argwhere(object_mask)
-    template_points = np.argwhere(render.mask)[:, ::-1].astype(np.float64)
+    to_template = similarity.inverse().matrix[:, :2]
+    object_spread, template_spread = _covariance(object_mask), _covariance(render.mask)
     if hidden is not None and hidden.any():
-        seen_object = np.argwhere(object_mask & ~hidden)
-        seen_template = np.argwhere(warp_mask(render.mask, similarity, object_mask.shape) & ~hidden)
-        if len(seen_object) >= 3 and len(seen_template) >= 3:
-            object_points = seen_object
-            template_points = to_template.apply(seen_template[:, ::-1].astype(np.float64))
-    object_points = to_template.apply(object_points[:, ::-1].astype(np.float64))
-    spread = object_points.std(axis=0) / np.maximum(template_points.std(axis=0), 1e-9)
+        seen_object = object_mask & ~hidden
+        seen_template = warp_mask(render.mask, similarity, object_mask.shape) & ~hidden
+        if np.count_nonzero(seen_object) >= 3 and np.count_nonzero(seen_template) >= 3:
+            object_spread = _covariance(seen_object)
+            template_spread = to_template @ _covariance(seen_template) @ to_template.T
+    object_spread = to_template @ object_spread @ to_template.T
+    spread = np.sqrt(np.diag(object_spread)) / np.maximum(np.sqrt(np.diag(template_spread)), 1e-9)
     return float(spread.min() / spread.max())
+
+
+def _covariance(mask: np.ndarray) -> np.ndarray:
+    """The 2x2 covariance of the mask's pixel coordinates (x, y), as ``np.cov(..., bias=True)`` gives."""
+    moments = cv2.moments(np.asarray(mask, dtype=np.uint8), binaryImage=True)
+    area = max(moments["m00"], 1.0)
+    return np.array([[moments["mu20"], moments["mu11"]], [moments["mu11"], moments["mu02"]]]) / area
