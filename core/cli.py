@@ -217,9 +217,11 @@ def _parse_sets(pairs: list[str]) -> dict[str, Any]:
 def _cmd_reconstruct(args: argparse.Namespace) -> int:
     from frontal3d.pipeline import reconstruct, reconstruct_all
     from frontal3d.progress import StageProgress
+    from frontal3d.stages.export import check_output_folder
 
     if len(args.images) > 1 and (args.mask or args.occluder_mask):
         raise ConfigError("--mask and --occluder-mask need a single IMAGE")
+    check_output_folder(args.out)
     plugins = _plugins(args)
     settings = _parse_sets(args.set)
     failures = 0

@@ -129,12 +129,24 @@ def merge_family_settings(config: Config, family_name: str, family_defaults: dic
         if key not in merged:
             known = ", ".join(sorted(merged))
             raise ConfigError(f"{where}: unknown setting (known: {known})")
-        merged[key] = coerce_setting(value, merged[key], where)
+        merged[key] = coerce_setting(value, merged[key], where, key)
     return merged
 
 
-def coerce_setting(value: Any, default: Any, where: str) -> Any:
-    """Accept a value of the default's type (an int where a float is expected too)."""
+#: The smallest value a numeric setting may take (below it the pipeline could only fail later, less clearly).
+SETTING_MINIMA: dict[str, int] = {
+    "working_resolution": 16,
+    "template_resolution": 32,
+    "boundary_k": 0,
+    "region_k": 0,
+    "smooth_iterations": 0,
+    "max_vertices": 0,
+    "max_texture_side": 0,
+}
+
+
+def coerce_setting(value: Any, default: Any, where: str, key: str = "") -> Any:
+    """Accept a value of the default's type (an int where a float is expected too), within :data:`SETTING_MINIMA`."""
     if isinstance(default, bool):
         ok = isinstance(value, bool)
     elif isinstance(default, float):
@@ -146,6 +158,8 @@ def coerce_setting(value: Any, default: Any, where: str) -> Any:
         ok = isinstance(value, type(default))
     if not ok:
         raise ConfigError(f"{where}: expected {type(default).__name__}, got {type(value).__name__} {value!r}")
+    if key in SETTING_MINIMA and value < SETTING_MINIMA[key]:
+        raise ConfigError(f"{where}: must be at least {SETTING_MINIMA[key]}, got {value!r}")
     return value
 
 

@@ -78,7 +78,7 @@ class Plugins:
         for key, value in (overrides or {}).items():
             if key not in merged:
                 raise ConfigError(f"unknown setting {key!r} for family {family_name!r}")
-            merged[key] = coerce_setting(value, merged[key], f"setting {key!r}")
+            merged[key] = coerce_setting(value, merged[key], f"setting {key!r}", key)
         return merged
 
     def _load(self) -> None:

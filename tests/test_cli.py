@@ -73,6 +73,23 @@ def test_missing_and_empty_images(tmp_path, capsys):
     assert not (tmp_path / "o").exists()
 
 
+def test_an_output_path_that_cannot_be_a_folder_fails_before_the_work(tmp_path, capsys, monkeypatch):
+    import frontal3d.pipeline
+
+    def must_not_run(*args, **kwargs):
+        raise AssertionError("reconstructed although the output cannot be written")
+
+    monkeypatch.setattr(frontal3d.pipeline, "reconstruct", must_not_run)
+    image = tmp_path / "x.png"
+    cv2.imwrite(str(image), np.random.default_rng(0).integers(0, 255, (64, 64, 3), dtype=np.uint8))
+    a_file = tmp_path / "notes.txt"
+    a_file.write_text("keep me")
+    assert "is not a folder" in _one_line_error(capsys, ["reconstruct", str(image), "--family", "car", "-o", str(a_file)])
+    message = _one_line_error(capsys, ["reconstruct", str(image), "--family", "car", "-o", str(a_file / "out")])
+    assert f"{a_file} is a file, not a folder" in message
+    assert a_file.read_text() == "keep me"
+
+
 def test_unknown_family_is_one_line_error(tmp_path, capsys):
     image = tmp_path / "x.png"
     cv2.imwrite(str(image), np.random.default_rng(0).integers(0, 255, (64, 64, 3), dtype=np.uint8))
@@ -93,6 +110,8 @@ def test_bad_setting_is_one_line_error(tmp_path, capsys):
     assert "unknown setting 'no_such_key'" in _one_line_error(capsys, ["reconstruct", str(image), "--family", "car", "--set", "no_such_key=1"])
     wrong_type = _one_line_error(capsys, ["reconstruct", str(image), "--family", "car", "--set", "working_resolution=big"])
     assert "setting 'working_resolution': expected int" in wrong_type
+    too_small = _one_line_error(capsys, ["reconstruct", str(image), "--family", "car", "--set", "working_resolution=5"])
+    assert "setting 'working_resolution': must be at least 16, got 5" in too_small
 
 
 def test_scaffolded_family_installs_and_is_listed(tmp_path):

@@ -125,6 +125,7 @@ def _write(tmp_path: Path, text: str) -> Path:
         ("[plugins]\nenabled = ['car', 'boat']\n", r"plugins.enabled: unknown plugin\(s\) boat"),
         ("[families.car]\nworking_resolutoin = 300\n", r"families.car.working_resolutoin: unknown setting"),
         ("[families.car]\nworking_resolution = 'big'\n", r"families.car.working_resolution: expected int"),
+        ("[families.car]\nmax_texture_side = -1\n", r"families.car.max_texture_side: must be at least 0"),
         ("[plugins\n", r"not valid TOML"),
     ],
 )

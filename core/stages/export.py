@@ -178,6 +178,21 @@ def _write_all(folder: Path, textured: TexturedMesh, landmarks: dict[str, np.nda
     return names
 
 
+def check_output_folder(out_dir: Path) -> None:
+    """Fail now, with the reason, if ``out_dir`` could not be written: before a long run, not after it.
+
+    The folder may not exist yet; then its nearest existing parent must be a folder we may write into.
+    """
+    out_dir = Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(f"output path {out_dir} exists and is not a folder")
+    existing = next(parent for parent in (out_dir, *out_dir.parents) if parent.exists())
+    if not existing.is_dir():
+        raise InputError(f"cannot write into {out_dir}: {existing} is a file, not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise InputError(f"cannot write into {out_dir}: {existing} is not writable")
+
+
 def export_all(out_dir: Path, textured: TexturedMesh, landmarks: dict[str, np.ndarray], report: dict,
                debug_maps: dict[str, np.ndarray] | None = None, preview_size: int | None = 512) -> dict[str, Path]:
     """Write the model files into ``out_dir`` and return ``{file name stem or kind: path}``.
@@ -192,10 +207,12 @@ def export_all(out_dir: Path, textured: TexturedMesh, landmarks: dict[str, np.nd
     for name, position in landmarks.items():
         if np.shape(position) != (3,) or not np.all(np.isfinite(position)):
             raise TemplateError(f"landmark {name!r} must be a finite 3D point, got {position!r}")
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError(f"output path {out_dir} exists and is not a folder")
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", suffix=".partial", dir=out_dir.parent))
+    check_output_folder(out_dir)
+    try:
+        out_dir.parent.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", suffix=".partial", dir=out_dir.parent))
+    except OSError as error:
+        raise InputError(f"cannot write into {out_dir.parent}: {error.strerror or error}") from error
     try:
         staging.chmod(0o755)  # mkdtemp makes it private; the result is an ordinary folder
         names = _write_all(staging, textured, landmarks, report, debug_maps or {}, preview_size)
