@@ -29,10 +29,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 1
     try:
+        _check_output(args)
         return int(args.run(args) or 0)
     except Frontal3DError as exc:
         print(f"frontal3d: error: {exc}", file=sys.stderr)
         return exc.exit_code
+    except OSError as exc:  # the file system said no (a full disk, a path through a file): the user's to fix
+        if args.debug:
+            raise
+        where = f" {exc.filename}" if exc.filename else ""
+        print(f"frontal3d: error: cannot use{where}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print("frontal3d: interrupted", file=sys.stderr)
         return 130
@@ -41,6 +48,15 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise
         print(f"frontal3d: internal error: {type(exc).__name__}: {exc} (run with --debug for the traceback)", file=sys.stderr)
         return 3
+
+
+def _check_output(args: argparse.Namespace) -> None:
+    """Fail before the work, not after it, when ``-o`` cannot be written (a path through a file, no permission)."""
+    from frontal3d.stages.export import check_output_folder
+
+    out = getattr(args, "out", None)
+    if out is not None:
+        check_output_folder(out.parent if getattr(args, "out_is_file", False) else out)
 
 
 _MESHES_HELP = "folder of ground-truth *.glb in the family's canonical frame"
@@ -98,11 +114,11 @@ def _parser() -> argparse.ArgumentParser:
     t.add_argument("--subtype", required=True)
     t.add_argument("--regions", type=Path, help="YAML/JSON mapping of the mesh's group/material/colour names to region names")
     t.add_argument("-o", "--out", type=Path, help="also write a contact sheet PNG here")
-    t.set_defaults(run=_cmd_template_build)
+    t.set_defaults(run=_cmd_template_build, out_is_file=True)
     t = tsub.add_parser("show", help="write a contact sheet of a template: views, depth, normals, regions, landmarks")
     t.add_argument("which", metavar="FAMILY/SUBTYPE")
     t.add_argument("-o", "--out", type=Path, required=True, help="PNG to write")
-    t.set_defaults(run=_cmd_template_show)
+    t.set_defaults(run=_cmd_template_show, out_is_file=True)
 
     p = sub.add_parser("evaluate", help="score reconstructions against ground-truth meshes (the paper's protocol)", description="For each ground-truth mesh (canonical frame), reconstruct from its frontal render and compare: voxel IoU (128^3, ICP-aligned), Chamfer-L1 and F-score@0.1 (each mesh centred on its box; also after the IoU's ICP alignment, as a second reading of the paper). Writes metrics.csv, summary.csv and boxplots.png.")
     p.add_argument("--family", required=True)
@@ -188,7 +204,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--epochs", type=int, default=8)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--size", type=int, default=None, help="side of the square the segmenter or region network sees, a multiple of 8 (default: 96; the checkpoint keeps it)")
-    p.set_defaults(run=_cmd_train)
+    p.set_defaults(run=_cmd_train, out_is_file=True)
     return parser
 
 
@@ -217,11 +233,9 @@ def _parse_sets(pairs: list[str]) -> dict[str, Any]:
 def _cmd_reconstruct(args: argparse.Namespace) -> int:
     from frontal3d.pipeline import reconstruct, reconstruct_all
     from frontal3d.progress import StageProgress
-    from frontal3d.stages.export import check_output_folder
 
     if len(args.images) > 1 and (args.mask or args.occluder_mask):
         raise ConfigError("--mask and --occluder-mask need a single IMAGE")
-    check_output_folder(args.out)
     plugins = _plugins(args)
     settings = _parse_sets(args.set)
     failures = 0

@@ -90,6 +90,33 @@ def test_an_output_path_that_cannot_be_a_folder_fails_before_the_work(tmp_path, 
     assert a_file.read_text() == "keep me"
 
 
+def test_every_command_checks_its_output_before_the_work(tmp_path, capsys):
+    a_file = tmp_path / "notes.txt"
+    a_file.write_text("keep me")
+    commands = [["synth", "--family", "car", "-n", "2", "-o", str(a_file)],
+                ["train", "frontal", "--data", str(tmp_path / "no_data"), "-o", str(a_file / "model.pt")],
+                ["template", "show", "car/sedan", "-o", str(a_file / "sheet.png")],
+                ["evaluate-gate", "--family", "car", "--synth", str(tmp_path / "no_data"), "-o", str(a_file)]]
+    for command in commands:
+        assert "is not a folder" in _one_line_error(capsys, command), command
+    assert a_file.read_text() == "keep me"
+
+
+def test_a_file_system_refusal_is_a_one_line_error(tmp_path, capsys, monkeypatch):
+    import errno
+
+    import frontal3d.pipeline
+
+    def disk_full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device", str(tmp_path / "out" / "model.glb"))
+
+    monkeypatch.setattr(frontal3d.pipeline, "reconstruct", disk_full)
+    image = tmp_path / "x.png"
+    cv2.imwrite(str(image), np.random.default_rng(0).integers(0, 255, (64, 64, 3), dtype=np.uint8))
+    message = _one_line_error(capsys, ["reconstruct", str(image), "--family", "car", "-o", str(tmp_path / "out")])
+    assert message.endswith("model.glb: No space left on device")
+
+
 def test_unknown_family_is_one_line_error(tmp_path, capsys):
     image = tmp_path / "x.png"
     cv2.imwrite(str(image), np.random.default_rng(0).integers(0, 255, (64, 64, 3), dtype=np.uint8))
