@@ -83,9 +83,7 @@ def _cut_short(path: Path, jpeg_only: bool = False) -> bool:
 
 
 def data_from_cv2(data: np.ndarray) -> np.ndarray:
-    """OpenCV's BGR(A) -> RGB(A), 16-bit -> 8-bit."""
-    if data.dtype == np.uint16:
-        data = (data / 257).astype(np.uint8)
+    """OpenCV's BGR(A) -> RGB(A)."""
     if data.ndim == 3 and data.shape[2] == 3:
         return cv2.cvtColor(data, cv2.COLOR_BGR2RGB)
     if data.ndim == 3 and data.shape[2] == 4:
@@ -96,6 +94,8 @@ def data_from_cv2(data: np.ndarray) -> np.ndarray:
 def as_rgb(image: np.ndarray, name: str = "image") -> np.ndarray:
     """Validate an in-memory image and give it 3 or 4 uint8 channels."""
     image = np.asarray(image)
+    if image.ndim == 3 and image.shape[2] == 1:
+        image = image[:, :, 0]
     if image.ndim == 2:
         image = np.repeat(image[:, :, None], 3, axis=2)
     if image.ndim != 3 or image.shape[2] not in (3, 4):
@@ -103,9 +103,11 @@ def as_rgb(image: np.ndarray, name: str = "image") -> np.ndarray:
     if image.shape[0] < 16 or image.shape[1] < 16:
         raise InputError(f"{name}: image is too small ({image.shape[1]}x{image.shape[0]} pixels)")
     if image.dtype != np.uint8:
-        if np.issubdtype(image.dtype, np.floating) and image.max() <= 1.0:
+        if image.dtype == np.uint16:  # 16-bit photos (PNG, TIFF) span 0-65535
+            image = image / 257.0
+        elif np.issubdtype(image.dtype, np.floating) and image.max() <= 1.0:
             image = image * 255.0
-        image = np.clip(image, 0, 255).astype(np.uint8)
+        image = np.clip(np.rint(image), 0, 255).astype(np.uint8)
     if int(image[..., :3].max()) == int(image[..., :3].min()) and (image.shape[2] == 3 or image[..., 3].min() == image[..., 3].max()):
         raise InputError(f"{name}: image is empty (every pixel has the same value)")
     return image

@@ -5,7 +5,7 @@ import pytest
 from PIL import Image, ImageOps
 
 from frontal3d.errors import InputError
-from frontal3d.imageio import read_image, read_mask
+from frontal3d.imageio import as_rgb, read_image, read_mask
 
 EXIF_ORIENTATION = 274
 
@@ -72,3 +72,16 @@ def test_a_mask_cut_short_is_a_one_line_error(tmp_path):
     _cut_in_half(path)
     with pytest.raises(InputError, match="cannot read mask .*: the file is cut short"):
         read_mask(path, (96, 128))
+
+
+def test_arrays_of_any_common_layout_come_in_as_the_same_8_bit_photo(tmp_path):
+    """What the Python API is handed: 16-bit, float 0-1, single-channel (H, W, 1) arrays."""
+    rng = np.random.default_rng(5)
+    photo = rng.integers(0, 256, (40, 56, 3), dtype=np.uint8)
+    np.testing.assert_array_equal(as_rgb(photo.astype(np.uint16) * 257), photo)
+    np.testing.assert_array_equal(as_rgb(photo.astype(np.float32) / 255.0), photo)
+    grey = photo[..., 0]
+    np.testing.assert_array_equal(as_rgb(grey[..., None]), np.repeat(grey[..., None], 3, axis=2))
+    path = tmp_path / "photo16.png"
+    Image.fromarray(photo[..., 0].astype(np.uint16) * 257).save(path)  # a 16-bit grey PNG
+    np.testing.assert_array_equal(read_image(path), np.repeat(grey[..., None], 3, axis=2))
