@@ -114,7 +114,7 @@ def as_rgb(image: np.ndarray, name: str = "image") -> np.ndarray:
 
 
 def read_mask(path: Path, shape: tuple[int, int]) -> np.ndarray:
-    """Read a user's mask (non-zero = object) and fit it to an image of ``shape``.
+    """Read a user's mask (object pixels as :func:`mask_from_array` reads them) and fit it to an image of ``shape``.
 
     A mask of another size is resized only when its aspect ratio matches the image's
     (a different aspect ratio means it belongs to another image).
@@ -125,15 +125,31 @@ def read_mask(path: Path, shape: tuple[int, int]) -> np.ndarray:
     data = cv2.imread(str(path), cv2.IMREAD_UNCHANGED) if path.is_file() else None
     if data is None:
         raise InputError(f"cannot read mask {path}: no such file or not an image")
-    data = _shown_upright(data, path)
-    if data.ndim == 3:
-        data = data[..., 3] if data.shape[2] == 4 else data.max(axis=2)
+    data = _single_channel(_shown_upright(data, path))
     h, w = shape
     if data.shape != (h, w):
         if abs(data.shape[1] / data.shape[0] - w / h) > 0.01:
             raise InputError(f"mask {path} is {data.shape[1]}x{data.shape[0]} but the image is {w}x{h}")
         data = cv2.resize(data, (w, h), interpolation=cv2.INTER_NEAREST)
-    mask = data > (data.max() / 2 if data.max() > 1 else 0)
+    mask = mask_from_array(data)
     if not mask.any():
         raise InputError(f"mask {path} is empty")
     return mask
+
+
+def mask_from_array(data: np.ndarray) -> np.ndarray:
+    """A mask's pixels as object / not object: past half the mask's range, so a soft matte's faint
+    halo stays out (0-1 masks: above 0.5; others, e.g. 0-255: above half their largest value).
+    A 4-channel mask is read by its alpha, a 3-channel one by its brightest channel."""
+    data = _single_channel(np.asarray(data))
+    if data.dtype == bool:
+        return data
+    peak = float(data.max()) if data.size else 0.0
+    return data > (peak / 2 if peak > 1 else 0.5)
+
+
+def _single_channel(data: np.ndarray) -> np.ndarray:
+    """A mask stored with channels: its alpha when it has four, else its brightest channel."""
+    if data.ndim != 3:
+        return data
+    return data[..., 3] if data.shape[2] == 4 else data.max(axis=2)

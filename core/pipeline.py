@@ -25,7 +25,7 @@ from frontal3d import learned_dense
 from frontal3d import occluders as people_detector
 from frontal3d.errors import ConfigError, InputError, NoObjectError, NotFrontalError, TemplateError, UnknownFamilyError
 from frontal3d.family import Family, Template
-from frontal3d.imageio import as_rgb, read_image, read_mask
+from frontal3d.imageio import as_rgb, mask_from_array, read_image, read_mask
 from frontal3d.masks import pieces_touching, within
 from frontal3d.plugins import Plugins
 from frontal3d.render import TemplateRenders, load_or_render
@@ -857,7 +857,7 @@ def _load_optional_mask(mask: np.ndarray | str | Path | None, shape: tuple[int, 
         return None
     if isinstance(mask, (str, Path)):
         return read_mask(Path(mask), shape)
-    mask = np.asarray(mask).astype(bool)
+    mask = mask_from_array(mask)
     if mask.shape != shape:
         raise InputError(f"{what} is {mask.shape[1]}x{mask.shape[0]} but the image is {shape[1]}x{shape[0]}")
     return mask

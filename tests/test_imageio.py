@@ -5,7 +5,7 @@ import pytest
 from PIL import Image, ImageOps
 
 from frontal3d.errors import InputError
-from frontal3d.imageio import as_rgb, read_image, read_mask
+from frontal3d.imageio import as_rgb, mask_from_array, read_image, read_mask
 
 EXIF_ORIENTATION = 274
 
@@ -85,3 +85,19 @@ def test_arrays_of_any_common_layout_come_in_as_the_same_8_bit_photo(tmp_path):
     path = tmp_path / "photo16.png"
     Image.fromarray(photo[..., 0].astype(np.uint16) * 257).save(path)  # a 16-bit grey PNG
     np.testing.assert_array_equal(read_image(path), np.repeat(grey[..., None], 3, axis=2))
+
+
+def test_a_soft_matte_is_read_the_same_as_array_or_file_whatever_its_range(tmp_path):
+    """A matte's faint halo is not object, whether the matte comes as 0-255, 0-1 or a PNG."""
+    yy, xx = np.mgrid[:60, :80]
+    distance = np.hypot(yy - 30, xx - 40)
+    matte = np.clip(1.0 - (distance - 15) / 10, 0, 1)  # solid to r = 15, fading to 0 at r = 25
+    core = distance < 20  # where the matte is above one half
+    clear = np.abs(matte - 0.5) > 0.01  # 8-bit rounding may go either way right at one half
+    as_8_bit = np.rint(matte * 255).astype(np.uint8)
+    path = tmp_path / "matte.png"
+    Image.fromarray(as_8_bit).save(path)
+    readings = [mask_from_array(matte), mask_from_array(as_8_bit), mask_from_array(np.dstack([as_8_bit] * 4)),
+                read_mask(path, (60, 80)), mask_from_array(core)]
+    for reading in readings:
+        np.testing.assert_array_equal(reading[clear], core[clear])
