@@ -254,7 +254,8 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
                 if len(args.images) == 1:
                     raise
                 failures += 1
-                progress.write(f"frontal3d: error: {image}: {exc}")
+                named = str(image) in str(exc)  # most messages name the file already
+                progress.write(f"frontal3d: error: {exc}" if named else f"frontal3d: error: {image}: {exc}")
                 continue
             for report, paths in saved:
                 progress.write(f"{image}: {report['family']}/{report['subtype']} -> {paths['glb']} ({report['mesh']['faces']} faces, {report['seconds_total']:.1f} s)")

@@ -163,3 +163,17 @@ def test_scaffold_refuses_bad_names_and_existing_folders(tmp_path, capsys):
     assert "family name" in _one_line_error(capsys, ["new-family", "Bad Name", "-o", str(tmp_path / "x")])
     (tmp_path / "exists").mkdir()
     assert "already exists" in _one_line_error(capsys, ["new-family", "mug", "-o", str(tmp_path / "exists")])
+
+
+def test_many_images_go_on_past_a_bad_one_and_name_it_once(tmp_path, capsys):
+    from pathlib import Path
+
+    example = Path(__file__).resolve().parents[1] / "examples" / "sportscar.png"
+    bad = tmp_path / "notes.png"
+    bad.write_text("not an image")
+    out = tmp_path / "out"
+    assert main(["reconstruct", str(bad), str(example), "--family", "car", "-o", str(out)]) == 2
+    captured = capsys.readouterr()
+    errors = [line for line in (captured.out + captured.err).splitlines() if line.startswith("frontal3d: error:")]
+    assert len(errors) == 1 and errors[0].count(str(bad)) == 1, errors
+    assert (out / "sportscar" / "model.glb").is_file() and not (out / "notes").exists()
