@@ -430,7 +430,7 @@ def _reconstruct_shape_and_texture(
     with report.stage("texture", progress):
         full_crop = rgb[crop.y0 : crop.y0 + crop.height, crop.x0 : crop.x0 + crop.width, :3]
         texture_scale = _texture_scale(crop, int(settings["max_texture_side"]))
-        texture_size = (max(1, round(crop.width * texture_scale)), max(1, round(crop.height * texture_scale)))
+        texture_size = (max(1, int(crop.width * texture_scale)), max(1, int(crop.height * texture_scale)))  # floored: within the limit
         if texture_scale < 1.0:
             report.warn(f"texture kept at {texture_scale:.2f} of the photo's resolution: its atlas (front and back side by side) "
                         f"would be wider than max_texture_side = {settings['max_texture_side']} px")
