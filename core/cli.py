@@ -23,6 +23,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = _parser()
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    if not args.debug:
+        _quiet_opencv()
     if getattr(args, "verbose", False):
         logging.getLogger("frontal3d").setLevel(logging.INFO)
     if not hasattr(args, "run"):
@@ -48,6 +50,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise
         print(f"frontal3d: internal error: {type(exc).__name__}: {exc} (run with --debug for the traceback)", file=sys.stderr)
         return 3
+
+
+def _quiet_opencv() -> None:
+    """OpenCV logs its decoders' complaints (a corrupt TIFF: four lines) on stderr; the CLI says
+    what went wrong itself, in one line. ``--debug`` keeps them."""
+    import cv2
+
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
 
 
 def _check_output(args: argparse.Namespace) -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import cv2
@@ -44,7 +45,8 @@ def _shown_upright(data: np.ndarray, path: Path) -> np.ndarray:
     upright arrived lying down, and a mask painted over the photo as shown did not fit it.
     """
     try:
-        with Image.open(path) as image:
+        # PIL warns of corrupt EXIF on stderr; the orientation then stays 1.
+        with warnings.catch_warnings(action="ignore"), Image.open(path) as image:
             orientation = image.getexif().get(274, 1)
     except (OSError, ValueError, Image.DecompressionBombError):  # a format only OpenCV reads, or over PIL's size limit
         return data
@@ -69,7 +71,7 @@ def _cut_short(path: Path, jpeg_only: bool = False) -> bool:
     their data: about 40 ms for a 12-megapixel photo.
     """
     try:
-        with Image.open(path) as image:
+        with warnings.catch_warnings(action="ignore"), Image.open(path) as image:  # a corrupt file's warnings: the error says it
             if image.format == "JPEG":
                 image.draft(image.mode, (max(1, image.width // 8), max(1, image.height // 8)))
             elif jpeg_only:

@@ -177,3 +177,14 @@ def test_many_images_go_on_past_a_bad_one_and_name_it_once(tmp_path, capsys):
     errors = [line for line in (captured.out + captured.err).splitlines() if line.startswith("frontal3d: error:")]
     assert len(errors) == 1 and errors[0].count(str(bad)) == 1, errors
     assert (out / "sportscar" / "model.glb").is_file() and not (out / "notes").exists()
+
+
+@pytest.mark.filterwarnings("error")  # a warning PIL prints on stderr (corrupt EXIF) fails the test too
+def test_a_corrupt_tiff_gives_one_line_not_opencvs_decoder_log(tmp_path, capfd):
+    photo = tmp_path / "scan.tif"
+    cv2.imwrite(str(photo), np.random.default_rng(1).integers(0, 255, (120, 160, 3), dtype=np.uint8))
+    data = photo.read_bytes()
+    photo.write_bytes(data[: 2 * len(data) // 3])
+    assert main(["reconstruct", str(photo), "--family", "car", "-o", str(tmp_path / "out")]) == 2
+    err = capfd.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"frontal3d: error: cannot read image {photo}: "), err
