@@ -30,58 +30,56 @@ def read_image(path: Path) -> np.ndarray:
         raise InputError(f"cannot read image {path}: it is a folder (give the image files, e.g. {path}/*.jpg)")
     if not path.is_file():
         raise InputError(f"cannot read image {path}: no such file")
-    _refuse_cut_short_jpeg(path, "image")
-    data = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if data is None or data.size == 0:
-        raise InputError(f"cannot read image {path}: {'the file is cut short' if _cut_short(path) else 'not an image or unsupported format'}")
-    return as_rgb(data_from_cv2(_shown_upright(data, path)), str(path))
+    return as_rgb(data_from_cv2(_decoded(path, "image")), str(path))
 
 
-def _shown_upright(data: np.ndarray, path: Path) -> np.ndarray:
-    """The pixels read from ``path`` turned as image viewers show them.
+def _decoded(path: Path, what: str) -> np.ndarray:
+    """OpenCV's pixels of an image file (BGR(A), 8 or 16 bits), turned as image viewers show them.
 
     Phones store a portrait photo sideways with an EXIF Orientation tag; OpenCV ignores the
-    tag when it keeps the alpha channel (IMREAD_UNCHANGED), so without this a guitar held
+    tag when it keeps the alpha channel (IMREAD_UNCHANGED), so without the turn a guitar held
     upright arrived lying down, and a mask painted over the photo as shown did not fit it.
+    A JPEG cut short (an interrupted copy or download) is an error: OpenCV decodes it with its
+    missing lower part grey and says so only on stderr, and the object's lower part was lost.
     """
-    try:
-        # PIL warns of corrupt EXIF on stderr; the orientation then stays 1.
-        with warnings.catch_warnings(action="ignore"), Image.open(path) as image:
-            orientation = image.getexif().get(274, 1)
-    except (OSError, ValueError, Image.DecompressionBombError):  # a format only OpenCV reads, or over PIL's size limit
-        return data
+    orientation, cut_short = _pil_look(path)
+    if cut_short:
+        raise InputError(f"cannot read {what} {path}: the file is cut short (its lower part is missing)")
+    data = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if data is None or data.size == 0:
+        cause = "the file is cut short" if _pil_look(path, decode_all=True)[1] else "not an image or unsupported format"
+        raise InputError(f"cannot read {what} {path}: {cause}")
     turn = _EXIF_TURNS.get(orientation)
     return np.ascontiguousarray(turn(data)) if turn else data
 
 
-def _refuse_cut_short_jpeg(path: Path, what: str) -> None:
-    """A JPEG cut short (an interrupted copy or download) is an error, not a half-grey photo.
+def _pil_look(path: Path, decode_all: bool = False) -> tuple[int, bool]:
+    """(EXIF orientation, whether the image data ends early) as PIL reads ``path``: (1, False) when
+    PIL cannot tell (a format only OpenCV reads, over PIL's size limit, corrupt EXIF).
 
-    OpenCV decodes such a file with its missing lower part grey and says so only on stderr;
-    the object's lower part would then be lost without a word.
+    JPEGs are decoded at an eighth of their size (``draft``), which still reads all of their
+    data: about 40 ms for a 12-megapixel photo. Other formats only with ``decode_all``: OpenCV
+    fails on those itself when they are cut short, and then only the cause is wanted.
     """
-    if _cut_short(path, jpeg_only=True):
-        raise InputError(f"cannot read {what} {path}: the file is cut short (its lower part is missing)")
-
-
-def _cut_short(path: Path, jpeg_only: bool = False) -> bool:
-    """Whether PIL finds the file's image data ending early (False when PIL cannot tell).
-
-    JPEGs are decoded at an eighth of their size (``draft``), which still reads all of
-    their data: about 40 ms for a 12-megapixel photo.
-    """
-    try:
-        with warnings.catch_warnings(action="ignore"), Image.open(path) as image:  # a corrupt file's warnings: the error says it
-            if image.format == "JPEG":
-                image.draft(image.mode, (max(1, image.width // 8), max(1, image.height // 8)))
-            elif jpeg_only:
-                return False
-            image.load()
-    except (OSError, SyntaxError) as error:
-        return "truncated" in str(error)
-    except (ValueError, Image.DecompressionBombError):
-        return False
-    return False
+    orientation, cut_short = 1, False
+    # PIL warns of a corrupt file on stderr; the one-line error says what matters.
+    with warnings.catch_warnings(action="ignore"):
+        try:
+            with Image.open(path) as image:
+                try:
+                    orientation = image.getexif().get(274, 1)
+                except (OSError, ValueError):
+                    pass
+                if image.format == "JPEG":
+                    image.draft(image.mode, (max(1, image.width // 8), max(1, image.height // 8)))
+                elif not decode_all:
+                    return orientation, False
+                image.load()
+        except (OSError, SyntaxError) as error:
+            cut_short = "truncated" in str(error)
+        except (ValueError, Image.DecompressionBombError):
+            pass
+    return orientation, cut_short
 
 
 def data_from_cv2(data: np.ndarray) -> np.ndarray:
@@ -122,12 +120,9 @@ def read_mask(path: Path, shape: tuple[int, int]) -> np.ndarray:
     (a different aspect ratio means it belongs to another image).
     """
     path = Path(path)
-    if path.is_file():
-        _refuse_cut_short_jpeg(path, "mask")
-    data = cv2.imread(str(path), cv2.IMREAD_UNCHANGED) if path.is_file() else None
-    if data is None:
-        raise InputError(f"cannot read mask {path}: no such file or not an image")
-    data = _single_channel(_shown_upright(data, path))
+    if not path.is_file():
+        raise InputError(f"cannot read mask {path}: no such file")
+    data = _single_channel(_decoded(path, "mask"))
     h, w = shape
     if data.shape != (h, w):
         if abs(data.shape[1] / data.shape[0] - w / h) > 0.01:
