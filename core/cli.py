@@ -140,7 +140,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--out", type=Path, default=Path("frontal3d-eval"), help="output folder")
     p.set_defaults(run=_cmd_evaluate)
 
-    p = sub.add_parser("evaluate-occlusion", help="score reconstructions of renders with arms or people pasted in front (issue 7's protocols)", description="Paste occluders over each frontal render (10-30 % of the object) and reconstruct from the visible mask: arms = procedural skin-toned forearms and hands, their mask given as the occluder mask; people = people cut out of public-domain photos shipped with skimage and matplotlib, as a guitarist (body behind, an arm in front) or whole in front, no occluder mask given (each also run with its true mask for reference). Reports each metric's change against the unoccluded reconstruction, rejections and occluder pixels left in the texture (in the whole front half of the atlas, and on the model only). Writes composites.csv, summary.csv and images/.")
+    p = sub.add_parser("evaluate-occlusion", help="score reconstructions of renders with arms or people pasted in front (issue 7's protocols)", description="Paste occluders over each frontal render (10-30 % of the object) and reconstruct from the visible mask (with --segment, from the composite alone): arms = procedural skin-toned forearms and hands, their mask given as the occluder mask; people = people cut out of public-domain photos shipped with skimage and matplotlib, as a guitarist (body behind, an arm in front) or whole in front, no occluder mask given (each also run with its true mask for reference). Reports each metric's change against the unoccluded reconstruction, rejections and occluder pixels left in the texture (in the whole front half of the atlas, and on the model only). Writes composites.csv, summary.csv and images/.")
     p.add_argument("--family", required=True)
     p.add_argument("--meshes", type=Path, required=True, help=_MESHES_HELP)
     p.add_argument("--renders", type=Path, required=True, help="folder of <id>.png/<id>_mask.png/<id>.json frontal renders")
@@ -150,6 +150,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--limit", type=int, help="only the first N meshes")
     p.add_argument("--every", type=int, default=1, help="score every N-th mesh of the sorted listing, under the composites the whole run gives it (default: 1)")
     p.add_argument("--offset", type=int, default=0, help="start at this index of the listing, below --every (default: 0; 1 with --every 2 = the odd half)")
+    p.add_argument("--segment", action="store_true", help="give no object mask: segment each composite (and its clean render) as reconstruct does with a photo")
     _add_set_option(p, "working_resolution=400")
     p.add_argument("-o", "--out", type=Path, default=Path("frontal3d-eval-occlusion"), help="output folder")
     p.set_defaults(run=_cmd_evaluate_occlusion)
@@ -378,7 +379,7 @@ def _cmd_evaluate_occlusion(args: argparse.Namespace) -> int:
         raise ConfigError("--per-object must be at least 1")
     rows = run_occlusion_evaluation(args.family, args.meshes, args.renders, args.occluders, plugins, args.out, seed=args.seed,
                                     per_object=args.per_object, limit=args.limit, settings=_parse_sets(args.set), progress=sys.stderr.isatty(),
-                                    every=args.every, offset=args.offset)
+                                    every=args.every, offset=args.offset, segment=args.segment)
     print("\n".join(summary_lines(summarize(rows))))
     print(f"wrote {args.out}/composites.csv, summary.csv, images/")
     return 0

@@ -306,12 +306,14 @@ def _composites(kind: str, image: np.ndarray, mask: np.ndarray, first: int, coun
 def run_occlusion_evaluation(family: str, meshes_dir: Path, renders_dir: Path, kind: str, plugins: Any, out_dir: Path,
                              seed: int = 0, per_object: int = 5, limit: int | None = None,
                              settings: dict[str, Any] | None = None, progress: bool = True,
-                             every: int = 1, offset: int = 0) -> list[dict]:
+                             every: int = 1, offset: int = 0, segment: bool = False) -> list[dict]:
     """Score every render of ``renders_dir`` under ``per_object`` composites of ``kind`` (arms|people).
 
     ``every`` and ``offset`` score only every ``every``-th mesh of the sorted listing from
     ``offset`` (a tuning half and a held-out half), each under the composites the whole run
-    gives it (:func:`selected_composites`). Writes ``composites.csv`` (one row per composite),
+    gives it (:func:`selected_composites`). ``segment`` gives no object mask: each composite,
+    and its clean render, is segmented as ``reconstruct`` segments a photo (what a user with a
+    guitarist's photo and no mask gets). Writes ``composites.csv`` (one row per composite),
     ``summary.csv`` and the composites themselves (``images/<id>_<n>.png`` and
     ``_occluder.png``) into ``out_dir``.
     """
@@ -330,9 +332,9 @@ def run_occlusion_evaluation(family: str, meshes_dir: Path, renders_dir: Path, k
     for path, image, mask, index, composite in selected_composites(kind, paths, Path(renders_dir), per_object, seed, every, offset):
         if index == 0:
             gt = load_mesh(path)
-            clean_result = _reconstruct(plugins, family, image, mask, None, settings)
+            clean_result = _reconstruct(plugins, family, image, None if segment else mask, None, settings)
             clean = {**_scores(clean_result, gt), "subtype": _subtype(clean_result)}
-        rows.append(_composite_row(plugins, family, path.stem, index, composite, image, mask, gt, clean, kind, settings, out_dir))
+        rows.append(_composite_row(plugins, family, path.stem, index, composite, image, mask, gt, clean, kind, settings, out_dir, segment))
         bar.update(1)
     bar.close()
     write_csv(out_dir / "composites.csv", COMPOSITE_FIELDS, rows)
@@ -341,15 +343,17 @@ def run_occlusion_evaluation(family: str, meshes_dir: Path, renders_dir: Path, k
     return rows
 
 
-def _composite_row(plugins, family, mesh_id, index, composite: Composite, image, mask, gt, clean, kind, settings, out_dir) -> dict:
+def _composite_row(plugins, family, mesh_id, index, composite: Composite, image, mask, gt, clean, kind, settings, out_dir,
+                   segment: bool = False) -> dict:
     name = f"{mesh_id}_{index}"
+    visible = None if segment else composite.visible
     cv2.imwrite(str(out_dir / "images" / f"{name}.png"), composite.image[..., ::-1])
     cv2.imwrite(str(out_dir / "images" / f"{name}_occluder.png"), composite.occluder.astype(np.uint8) * 255)
     row: dict[str, Any] = {"id": mesh_id, "composite": name, "occluder": composite.occluder_name, "mode": composite.mode,
                            "occluded_share": round(composite.share(mask), 4), "rejected": "", "error": ""}
     given = composite.occluder if kind == "arms" else None
     try:
-        result = _reconstruct(plugins, family, composite.image, composite.visible, given, settings)
+        result = _reconstruct(plugins, family, composite.image, visible, given, settings)
         row.update(_scores(result, gt, clean))
         row["subtype"], row["subtype_clean"] = _subtype(result), clean["subtype"]
         row["detected_fraction"] = result.report.get("occlusion", {}).get("occluded_fraction", 0.0)
@@ -365,7 +369,7 @@ def _composite_row(plugins, family, mesh_id, index, composite: Composite, image,
         row["error"] = f"{type(exc).__name__}: {exc}".splitlines()[0]
     if kind == "people":
         try:
-            truth_result = _reconstruct(plugins, family, composite.image, composite.visible, composite.occluder, settings)
+            truth_result = _reconstruct(plugins, family, composite.image, visible, composite.occluder, settings)
             truth = _scores(truth_result, gt)
             row.update({f"{k}_true_mask": truth[k] for k in METRIC_KEYS})
             row["subtype_true_mask"] = _subtype(truth_result)

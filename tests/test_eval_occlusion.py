@@ -202,3 +202,32 @@ def test_a_slice_out_of_range_is_a_one_line_error(tmp_path):
     paths = _renders_folder(tmp_path, 2)
     with pytest.raises(ConfigError, match="--offset in 0 .. every-1"):
         next(selected_composites("arms", paths, tmp_path, 1, 0, every=2, offset=2))
+
+
+@pytest.mark.parametrize("segment", [False, True])
+def test_with_segment_no_object_mask_is_given(tmp_path, monkeypatch, segment):
+    """``--segment`` scores what a user with a photo and no mask gets: every reconstruction,
+    the clean render's too, segments the object itself; otherwise the visible mask is given."""
+    import trimesh
+    from types import SimpleNamespace
+
+    from frontal3d import eval_occlusion
+
+    _renders_folder(tmp_path, 1)
+    trimesh.creation.box().export(tmp_path / "g0.glb")
+    given_masks = []
+
+    def fake_reconstruct(plugins, family, image, mask, occluder, settings):
+        given_masks.append(mask)
+        return SimpleNamespace(report={}, mesh=None, textured=SimpleNamespace(atlas=None, front_synthesized=None, front_shown=np.ones((2, 2), bool)))
+
+    monkeypatch.setattr(eval_occlusion, "_reconstruct", fake_reconstruct)
+    monkeypatch.setattr(eval_occlusion, "evaluate_pair", lambda mesh, gt: dict.fromkeys(eval_occlusion.METRIC_KEYS, 0.5))
+    monkeypatch.setattr(eval_occlusion, "occluder_texels", lambda *args: np.zeros((2, 2), bool))
+    rows = eval_occlusion.run_occlusion_evaluation("guitar", tmp_path, tmp_path, "arms", None, tmp_path / "out", per_object=2,
+                                                   progress=False, segment=segment)
+    assert len(rows) == 2 and len(given_masks) == 3  # the clean render, then each composite
+    if segment:
+        assert all(mask is None for mask in given_masks)
+    else:
+        assert all(isinstance(mask, np.ndarray) and mask.any() for mask in given_masks)
