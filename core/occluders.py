@@ -68,8 +68,13 @@ OFF_OBJECT_BODY_SHARE = 0.75
 #: pixels off the object are added to it.
 COMPLETION_REACH = 0.04
 
-#: mediapipe pose landmark indices, per side: shoulder, elbow, wrist, then the hand points
+#: How far around the face detector's box (a share of its size; twice as far up) the person's pixels
+#: are taken as the head: hair, ears and chin.
+HEAD_REACH = 0.3
+
+#: mediapipe pose landmark indices: the nose; per side: shoulder, elbow, wrist, then the hand points
 #: (pinky, index, thumb) attached to the wrist.
+_NOSE = 0
 _ARM_CHAINS = ((11, 13, 15), (12, 14, 16))
 _HAND_POINTS = {15: (17, 19, 21), 16: (18, 20, 22)}
 #: The last image's selfie segmentation and pose (see :func:`_person_and_pose`).
@@ -137,6 +142,45 @@ def detect_people_with_evidence(image: np.ndarray, object_mask: np.ndarray | Non
         else:
             return None, None
     return cv2.resize(person.astype(np.uint8), (width, height), interpolation=cv2.INTER_NEAREST) > 0, evidence
+
+
+def detect_faces(image: np.ndarray) -> np.ndarray | None:
+    """Bool mask (image-sized) of people's faces, or None if there is none.
+
+    A face is a face detector's box that holds the pose model's nose (the detector alone also
+    fires on a guitar's body), with the person's pixels around it out to HEAD_REACH of its size
+    (hair, ears, chin: the box stops at the brows and the mouth). No object is ever a face, so
+    the segmentation cuts these (see :func:`frontal3d.stages.segment.without_faces`).
+    """
+    models = _load_models()
+    if models is None or models.faces is None:
+        return None
+    small, (height, width) = _detection_image(image)
+    with _native_logs_silenced():
+        probability, pose_result = _person_and_pose(models, small)
+        if pose_result is None or pose_result.pose_landmarks is None:
+            return None
+        nose = pose_result.pose_landmarks.landmark[_NOSE]
+        if nose.visibility < MIN_VISIBILITY:
+            return None
+        detections = models.faces.process(small).detections or []
+    person = probability > PERSON_PROBABILITY
+    rows, columns = small.shape[:2]
+    faces = np.zeros((rows, columns), bool)
+    for face in detections:
+        box = face.location_data.relative_bounding_box
+        if not (box.xmin <= nose.x <= box.xmin + box.width and box.ymin <= nose.y <= box.ymin + box.height):
+            continue
+        x0, x1 = round(box.xmin * columns), round((box.xmin + box.width) * columns)
+        y0, y1 = round(box.ymin * rows), round((box.ymin + box.height) * rows)
+        reach_x, reach_y = round(HEAD_REACH * (x1 - x0)), round(HEAD_REACH * (y1 - y0))
+        head = np.zeros_like(faces)
+        head[max(0, y0 - 2 * reach_y) : y1 + reach_y, max(0, x0 - reach_x) : x1 + reach_x] = True
+        faces[max(0, y0) : y1, max(0, x0) : x1] = True
+        faces |= head & person
+    if not faces.any():
+        return None
+    return cv2.resize(faces.astype(np.uint8), (width, height), interpolation=cv2.INTER_NEAREST) > 0
 
 
 def _face_off_object(models: _Models, small: np.ndarray, person: np.ndarray, object_mask: np.ndarray | None) -> bool:

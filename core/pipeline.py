@@ -501,15 +501,21 @@ def segment_object(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dic
     the segmenter chain, the occluder detectors, the pieces grouped into objects and, with
     the ``shape_prior`` setting, GrabCut's mask of the largest cut again with the templates and,
     with ``mirror_repair``, each object's mask mended by its mirror image (stages.mirror_repair).
+    People's faces are cut from what the segmenters find (segment.without_faces).
     The mask benchmark (frontal3d.eval_masks) scores exactly the largest object's mask."""
     report = report or Report()
     found = _segment(plugins, rgb, fam, settings, user_mask, report)
+    segmented_here = report.data["segmenter"] == "GrabCut (training-free)" or report.data["segmenter"].startswith("learned segmenter")
+    faces = people_detector.detect_faces(rgb) if segmented_here else None
+    if faces is not None and (found & faces).any():
+        without = segment.without_faces(found, faces)
+        report.data["face_pixels_cut"] = int(np.count_nonzero(found & ~without))
+        found = without
     occluders = occlusion.find_occluders(plugins, rgb, found, settings, user_occluders, report.data)
     objects = separate_objects(found, occluders, fam)
     if settings["shape_prior"] and report.data["segmenter"] == "GrabCut (training-free)":
         # The largest only (2-4 s each): the others are judged only when it is turned down or with --all.
         objects[0] = _refine_with_templates(plugins, rgb, objects[0], occluders, fam, settings, subtype, report)
-    segmented_here = report.data["segmenter"] == "GrabCut (training-free)" or report.data["segmenter"].startswith("learned segmenter")
     if settings["mirror_repair"] and segmented_here and occluders is None:
         # Not a mask the user gave, nor one with people in front: those may be rightly lopsided.
         network = learned_dense.configured_model(settings, "segmenter", fam)

@@ -399,6 +399,24 @@ def test_a_real_person_in_front_of_a_guitar_is_found_and_left_out_of_the_texture
     assert _skin(front).sum() < 0.002 * front.shape[0] * front.shape[1]  # 1.4 % when the person is not found
 
 
+@needs_mediapipe
+def test_a_face_is_found_with_the_head_around_it_and_a_guitar_is_no_face():
+    """The astronaut's face (skimage's portrait, public domain; the face lies at about x 165-265,
+    y 40-200 of the 512 px photo) with her hair and chin, not her suit; a drawn guitar has no face."""
+    import skimage
+    from frontal3d.occluders import detect_faces
+
+    portrait = cv2.cvtColor(cv2.imread(str(Path(skimage.__file__).parent / "data" / "astronaut.png")), cv2.COLOR_BGR2RGB)
+    faces = detect_faces(portrait)
+    assert faces is not None
+    rows, cols = np.nonzero(faces)
+    assert 150 < cols.mean() < 280 and 50 < rows.mean() < 190
+    assert faces[100:160, 190:240].all()  # eyes, nose and mouth
+    assert faces[300:, :].sum() < 0.02 * faces.sum()  # not her suit
+    guitar_image, _ = _drawn_guitar((480, 480))
+    assert detect_faces(guitar_image) is None
+
+
 def test_a_person_behind_the_object_leaves_no_colour_on_its_texture(monkeypatch):
     """A magenta body behind a drawn guitar, found by a pose, judged behind: nothing is rebuilt,
     but the working grid's coarser outline, scaled up, still takes in slivers of the body along

@@ -597,3 +597,62 @@ def test_a_faint_shape_of_the_background_s_hue_leaves_though_the_edge_blend_is_b
     found = _foreground(labels)
     assert (found & faint).sum() < 0.02 * faint.sum()
     assert (found & plane).sum() > 0.99 * plane.sum()
+
+
+def _guitar_with_face(neck_through_face: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A guitar mask (body and neck) with a face's blob stuck to it, the face's box, and the guitar alone."""
+    guitar = np.zeros((320, 300), np.uint8)
+    cv2.ellipse(guitar, (150, 240), (70, 60), 0, 0, 360, 1, -1)
+    guitar[20:190, 140:160] = 1
+    face_centre = (150, 90) if neck_through_face else (210, 175)
+    face = np.zeros_like(guitar)
+    cv2.circle(face, face_centre, 32, 1, -1)
+    box = np.zeros(guitar.shape, bool)
+    box[face_centre[1] - 45 : face_centre[1] + 33, face_centre[0] - 33 : face_centre[0] + 34] = True
+    return (guitar | face) > 0, box, guitar > 0
+
+
+def test_a_face_stuck_to_the_object_is_cut():
+    from frontal3d.stages.segment import without_faces
+
+    found, box, guitar = _guitar_with_face(neck_through_face=False)
+    kept = without_faces(found, box)
+    assert not (kept & box).any()
+    assert (kept == (guitar & ~box)).all()
+
+
+def test_a_neck_across_a_face_stays_and_the_face_beside_it_goes():
+    from frontal3d.stages.segment import without_faces
+
+    found, box, guitar = _guitar_with_face(neck_through_face=True)
+    kept = without_faces(found, box)
+    assert kept[box & guitar].mean() > 0.95  # the neck between where it enters the face and leaves it
+    assert (kept & box & ~guitar).sum() <= 0.03 * (box & ~guitar & found).sum()
+
+
+def test_faces_are_cut_from_what_the_segmenters_find_not_from_a_given_mask(monkeypatch):
+    from frontal3d import pipeline
+    from frontal3d.plugins import Plugins
+
+    found, box, guitar = _guitar_with_face(neck_through_face=False)
+    photo = np.zeros(found.shape + (3,), np.uint8)
+    photo[guitar] = (150, 100, 60)
+    photo[found & ~guitar] = (230, 180, 150)
+    monkeypatch.setattr(pipeline.people_detector, "detect_faces", lambda image: box)
+    plugins = Plugins()
+    fam = plugins.family("guitar")
+    settings = plugins.settings("guitar")
+
+    def segmented(segmenter: str):
+        def fake(plugins, rgb, fam, settings, user_mask, report):
+            report.data["segmenter"] = segmenter
+            return found.copy() if user_mask is None else user_mask
+        monkeypatch.setattr(pipeline, "_segment", fake)
+        report = pipeline.Report()
+        return pipeline.segment_object(plugins, photo, fam, settings, user_mask=found if segmenter == "user mask" else None,
+                                       report=report).segmented, report.data
+
+    mask, data = segmented("learned segmenter (weights/segmenter.pt)")
+    assert not (mask & box).any() and data["face_pixels_cut"] == int((found & box).sum())
+    mask, data = segmented("user mask")
+    assert (mask == found).all() and "face_pixels_cut" not in data

@@ -128,6 +128,11 @@ UNVOUCHED_OPENING = 0.01
 THIN_PART = 0.02
 THIN_PART_P = (0.5, 0.7, 0.9)
 THIN_PART_LENGTH = 0.25
+#: Faces (:func:`without_faces`): the object entering a head and leaving it again, each time in a
+#: run of at least FACE_RUN_PIXELS narrower than this share of the head's size, crosses the face
+#: (a guitar's neck in front of it); the strip between the two runs stays object.
+FACE_CROSSING_WIDTH = 0.6
+FACE_RUN_PIXELS = 3
 
 
 def mask_from_alpha(image: np.ndarray) -> np.ndarray | None:
@@ -138,6 +143,30 @@ def mask_from_alpha(image: np.ndarray) -> np.ndarray | None:
     if alpha.min() == alpha.max():
         return None
     return alpha > 127
+
+
+def without_faces(mask: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """``mask`` less people's faces (``occluders.detect_faces``): the learned segmenter takes
+    skin for wood, so a face beside a guitar joins it and its texture ends up on the model.
+    Where the object crosses a head in a thin strip (a neck in front of the face), the strip
+    between where it enters the head and where it leaves stays object."""
+    mask = np.asarray(mask, dtype=bool)
+    faces = np.asarray(faces, dtype=bool)
+    kept = mask & ~faces
+    count, heads = cv2.connectedComponents(faces.astype(np.uint8))
+    for label in range(1, count):
+        head = heads == label
+        ys, xs = np.nonzero(head)
+        size = max(np.ptp(ys), np.ptp(xs)) + 1
+        ring = (cv2.dilate(head.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0) & ~head
+        run_count, runs = cv2.connectedComponents((kept & ring).astype(np.uint8), connectivity=8)
+        thin = [points for points in (np.argwhere(runs == k) for k in range(1, run_count))
+                if len(points) >= FACE_RUN_PIXELS and np.ptp(points[:, 0]) + np.ptp(points[:, 1]) < FACE_CROSSING_WIDTH * size]
+        if len(thin) == 2:
+            strip = np.zeros(mask.shape, np.uint8)
+            cv2.fillConvexPoly(strip, cv2.convexHull(np.vstack(thin)[:, ::-1].astype(np.int32)), 1)
+            kept |= mask & head & (strip > 0)
+    return kept
 
 
 def split_objects(mask: np.ndarray) -> list[np.ndarray]:
