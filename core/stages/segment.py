@@ -153,11 +153,10 @@ def without_faces(mask: np.ndarray, faces: np.ndarray) -> np.ndarray:
     mask = np.asarray(mask, dtype=bool)
     faces = np.asarray(faces, dtype=bool)
     kept = mask & ~faces
-    count, heads = cv2.connectedComponents(faces.astype(np.uint8))
+    count, heads, stats, _ = cv2.connectedComponentsWithStats(faces.astype(np.uint8))
     for label in range(1, count):
         head = heads == label
-        ys, xs = np.nonzero(head)
-        size = max(np.ptp(ys), np.ptp(xs)) + 1
+        size = max(stats[label, cv2.CC_STAT_WIDTH], stats[label, cv2.CC_STAT_HEIGHT])
         ring = (cv2.dilate(head.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0) & ~head
         run_count, runs = cv2.connectedComponents((kept & ring).astype(np.uint8), connectivity=8)
         thin = [points for points in (np.argwhere(runs == k) for k in range(1, run_count))
