@@ -17,6 +17,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+import cv2
 import numpy as np
 
 from frontal3d.errors import ConfigError, InputError
@@ -75,12 +76,14 @@ def synthesize_from_region(front_texture: np.ndarray, mask: np.ndarray, region_m
     ``params['region']`` names the region (e.g. "body"); optional ``patch_max``
     (default 100, scaled for small images like the inpainting patches) caps the
     square and ``seed`` fixes the synthesis. A region too thin for any texture
-    square falls back to its mean colour.
+    square falls back to its mean colour. The square avoids the region's sharp
+    edges (:func:`_plain_square`): quilted, an f-hole or a pickup's rim in the
+    sample repeats all over the back as streaks.
     """
     _check(front_texture, mask)
     pixels = _region_pixels(mask, region_map, region_names, params)
     _, high = scaled_patch_range(front_texture.shape, SMALLEST_PATCH, int(params.get("patch_max", 100)))
-    square = largest_square(pixels, max_side=high)
+    square = _plain_square(front_texture, pixels, high)
     if square is None or square[2] < SMALLEST_PATCH:
         return solid_from_region(front_texture, mask, region_map, region_names, params)
     top, left, side = square
@@ -94,6 +97,28 @@ def synthesize_from_region(front_texture: np.ndarray, mask: np.ndarray, region_m
     back = np.zeros_like(front_texture)
     back[window] = np.where(back_mask[window][..., None], np.clip(np.rint(texture), 0, 255), 0)
     return back
+
+
+#: Canny thresholds for the sharp edges a texture sample avoids (wood grain and
+#: JPEG noise stay under them; an f-hole's or a binding's edge does not).
+EDGE_THRESHOLDS = (50, 150)
+#: How far (pixels) around a sharp edge the sample keeps off.
+EDGE_CLEARANCE = 2
+
+
+def _plain_square(texture: np.ndarray, pixels: np.ndarray, max_side: int) -> tuple[int, int, int] | None:
+    """The largest square of ``pixels`` (at most ``max_side``) clear of sharp edges, when it
+    is at least half as large as the largest square of ``pixels`` at all; otherwise that one."""
+    square = largest_square(pixels, max_side=max_side)
+    if square is None:
+        return None
+    grey = cv2.cvtColor(np.ascontiguousarray(texture[..., :3], dtype=np.uint8), cv2.COLOR_RGB2GRAY)
+    edges = cv2.Canny(cv2.GaussianBlur(grey, (3, 3), 0), *EDGE_THRESHOLDS)
+    near_edge = cv2.dilate(edges, np.ones((2 * EDGE_CLEARANCE + 1,) * 2, np.uint8)) > 0
+    plain = largest_square(pixels & ~near_edge, max_side=max_side)
+    if plain is not None and plain[2] >= max(SMALLEST_PATCH, square[2] // 2):
+        return plain
+    return square
 
 
 #: Rules every family can name in its settings; plugins add more through the hook.

@@ -132,6 +132,23 @@ def test_synthesized_back_uses_only_the_named_region_colours():
     assert not back[~flipped].any()
 
 
+def test_synthesized_back_leaves_out_a_hole_in_the_body():
+    """The body's largest square holds a dark f-hole; quilted, it would streak the whole
+    back. The sample is taken clear of it, so no dark pixel reaches the back."""
+    rng = np.random.default_rng(0)
+    shape = (240, 160)
+    mask = np.zeros(shape, np.uint8)
+    cv2.ellipse(mask, (80, 120), (70, 110), 0, 0, 360, 1, -1)
+    mask = mask > 0
+    image = np.clip(rng.normal((170, 90, 40), 4, shape + (3,)), 0, 255).astype(np.uint8)  # wood, a little grain
+    cv2.line(image, (80, 95), (86, 145), (25, 15, 10), 4)  # the f-hole, across the body's centre
+    region_map = np.where(mask, 0, -1)
+
+    back = synthesize_from_region(image, mask, region_map, REGIONS, {"region": "body"})
+
+    assert back[np.fliplr(mask)][:, 0].min() > 120  # red: wood 170, the hole 25
+
+
 def test_solid_back_is_the_region_mean_colour():
     _, image, mask, region_map, _ = _scene()
     back = solid_from_region(image, mask, region_map, REGIONS, {"region": "neck"})
