@@ -20,6 +20,7 @@ from typing import Any, Callable, Iterator, NamedTuple
 
 import cv2
 import numpy as np
+from scipy.ndimage import binary_fill_holes
 
 from frontal3d import learned_dense
 from frontal3d import occluders as people_detector
@@ -59,6 +60,12 @@ MAX_FREED_TURN_DEG = 20.0
 #: placement behind the classifier's, from masks alone, by more than this has gone astray: on a
 #: sunburst guitar photo, 0.73 against 0.82, and the model 13 % shorter than from its re-encoding (0.83).
 MI_OUTLINE_SLACK = 0.05
+#: A hole in the segmenters' mask that the placed template mostly covers (TEMPLATE_COVERED_HOLE of
+#: its pixels) and under MAX_FILLED_HOLE of the mask's area is filled: a chrome hub or a window the
+#: segmenter took for the white background behind it. Larger ones stay (a glassless window, a
+#: box wing), as do the holes a template has itself and every hole in a mask the user gave.
+MAX_FILLED_HOLE = 0.05
+TEMPLATE_COVERED_HOLE = 0.5
 
 
 @dataclass
@@ -379,6 +386,10 @@ def _reconstruct_shape_and_texture(
         rebuilt = occlusion.rebuild_silhouette(work_mask, work_occluders, aligned_template_mask, k=k, mirror_axis=mirror_axis)
         work_mask, occluded = rebuilt.mask, rebuilt.occluded
         report.data["occlusion"] = rebuilt.summary()
+        if _found_by_segmenters(report):
+            work_mask, filled = _template_holes_filled(work_mask, aligned_template_mask)
+            if filled:
+                report.data["filled_hole_pixels"] = filled
         maps["occlusion_mask"] = occluded
 
     with report.stage("regions", progress):
@@ -505,7 +516,7 @@ def segment_object(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dic
     The mask benchmark (frontal3d.eval_masks) scores exactly the largest object's mask."""
     report = report or Report()
     found = _segment(plugins, rgb, fam, settings, user_mask, report)
-    segmented_here = report.data["segmenter"] == "GrabCut (training-free)" or report.data["segmenter"].startswith("learned segmenter")
+    segmented_here = _found_by_segmenters(report)
     faces = people_detector.detect_faces(rgb) if segmented_here else None
     if faces is not None and (found & faces).any():
         without = segment.without_faces(found, faces)
@@ -899,6 +910,27 @@ def _consistent_pivots(outline_in: np.ndarray, outline_tpl: np.ndarray, inner_in
     tolerance = max(2.0, 0.02 * max(shape))
     keep = np.linalg.norm(coarse[rows, cols] - inner_tpl, axis=1) <= tolerance
     return inner_in[keep], inner_tpl[keep]
+
+
+def _found_by_segmenters(report: Report) -> bool:
+    """Whether the object's mask is the core segmenters' own, not the user's, an alpha channel's or a plugin's."""
+    name = report.data.get("segmenter", "")
+    return name == "GrabCut (training-free)" or name.startswith("learned segmenter")
+
+
+def _template_holes_filled(mask: np.ndarray, aligned_template_mask: np.ndarray) -> tuple[np.ndarray, int]:
+    """``mask`` with its holes filled where the template is solid (see MAX_FILLED_HOLE), and how many pixels that took."""
+    holes = binary_fill_holes(mask) & ~mask
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(holes.astype(np.uint8), connectivity=4)
+    if count <= 1:
+        return mask, 0
+    covered = np.bincount(labels[aligned_template_mask], minlength=count)
+    areas = stats[:, cv2.CC_STAT_AREA]
+    fill = (areas <= MAX_FILLED_HOLE * mask.sum()) & (covered >= TEMPLATE_COVERED_HOLE * areas)
+    fill[0] = False
+    if not fill.any():
+        return mask, 0
+    return mask | fill[labels], int(areas[fill].sum())
 
 
 def _pieces(mask: np.ndarray) -> int:

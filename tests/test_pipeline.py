@@ -104,6 +104,32 @@ def test_mask_with_a_hole_and_a_separate_blob(plugins):
     assert not any("touches the image border" in w for w in result.report["warnings"])
 
 
+def test_a_hole_the_segmenter_leaves_in_a_solid_part_is_filled(plugins):
+    """A chrome hub or a window of the backdrop's colour: the segmenter leaves a hole the car's
+    template does not have, and the model would be see-through there. A mask the user gives
+    keeps its hole (a frame's opening, above)."""
+    import cv2
+
+    rgba = np.asarray(cv2.imread(str(EXAMPLE), cv2.IMREAD_UNCHANGED))[..., [2, 1, 0, 3]]
+    car = rgba[..., 3] > 127
+    ys, xs = np.nonzero(car)
+    backdrop = (245, 245, 245)
+    image = np.full(car.shape + (3,), backdrop, np.uint8)
+    image[car] = rgba[..., :3][car]
+    centre, radius = (int(xs.min() + 0.45 * np.ptp(xs)), int(ys.min() + 0.55 * np.ptp(ys))), int(0.04 * np.ptp(xs))
+    cv2.circle(image, centre, radius, backdrop, -1)  # in the door, the backdrop's colour
+    holed = car.astype(np.uint8)
+    cv2.circle(holed, centre, radius, 0, -1)
+
+    found = frontal3d.reconstruct(image, "car", plugins=plugins)
+    given = frontal3d.reconstruct(image, "car", mask=holed > 0, plugins=plugins)
+
+    working_radius = radius * found.report["working_size"][0] / found.report["crop"]["width"]
+    assert found.report["filled_hole_pixels"] > 0.5 * np.pi * working_radius**2
+    assert found.mesh.is_watertight and found.mesh.euler_number == 2  # solid: no hole through the door
+    assert "filled_hole_pixels" not in given.report and given.mesh.euler_number == 0  # the user's hole stays
+
+
 def _side_by_side(*rgbas: np.ndarray, gap: int = 100) -> np.ndarray:
     """RGBA renders placed left to right on one transparent canvas, far enough apart to stay separate objects."""
     height = max(rgba.shape[0] for rgba in rgbas)
