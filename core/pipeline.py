@@ -239,13 +239,13 @@ def _reconstruct_objects(image: np.ndarray | str | Path, family: str | None, mas
                 break
         if not accepted:
             if not several_families:
-                raise turned_down[0][1]
+                raise _with_mask_hint(turned_down[0][1], report)
             rejections.append(f"{fam.name}: {turned_down[0][1]}")
             continue
         if chosen is None or accepted[0].frontal_confidence > chosen[2][0].frontal_confidence:
             chosen = (fam, fam_settings, accepted, [(rank, str(exc)) for rank, exc in turned_down], len(segmentation.objects))
     if chosen is None:
-        raise NotFrontalError("no installed family accepts this image: " + "; ".join(rejections))
+        raise _with_mask_hint(NotFrontalError("no installed family accepts this image: " + "; ".join(rejections)), report)
     fam, fam_settings, accepted, turned_down, found = chosen
     results = []
     for candidate in accepted:
@@ -910,6 +910,16 @@ def _consistent_pivots(outline_in: np.ndarray, outline_tpl: np.ndarray, inner_in
     tolerance = max(2.0, 0.02 * max(shape))
     keep = np.linalg.norm(coarse[rows, cols] - inner_tpl, axis=1) <= tolerance
     return inner_in[keep], inner_tpl[keep]
+
+
+def _with_mask_hint(error: NotFrontalError, report: Report) -> NotFrontalError:
+    """The chain's reason, and when the outline it judged is the core segmenters' own, that a
+    mask can be given: a wrong mask (a kerb taken in, a wing cut off) is turned down for a view
+    it does not show."""
+    if not _found_by_segmenters(report):
+        return error
+    segmenter = report.data["segmenter"].split(" (")[0]
+    return NotFrontalError(f"{error} (the outline judged is the {segmenter}'s: if it is not the object's, give a mask with --mask)")
 
 
 def _found_by_segmenters(report: Report) -> bool:

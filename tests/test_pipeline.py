@@ -180,8 +180,22 @@ def test_a_larger_object_the_chain_turns_down_gives_way_to_the_next(plugins):
 
 def test_side_on_view_is_rejected_with_a_reason(plugins):
     rgba, _ = _template_photo(plugins, "car", "sedan", rotate_y_deg=90)
-    with pytest.raises(NotFrontalError, match="side view"):
+    with pytest.raises(NotFrontalError, match="side view") as given:
         frontal3d.reconstruct(rgba, "car", plugins=plugins)
+    assert "--mask" not in str(given.value)  # the alpha channel's outline is the object's
+
+
+def test_a_turned_down_outline_the_segmenter_found_points_to_mask(plugins):
+    """The chain judges the segmenter's outline; when that is wrong (a kerb taken in), the
+    reason alone would blame the view: the message says a mask can be given."""
+    rgba, _ = _template_photo(plugins, "car", "sedan", rotate_y_deg=90)
+    car = rgba[..., 3] > 0
+    photo = np.full(car.shape + (3,), 235, np.uint8)
+    photo[car] = rgba[..., :3][car]
+    with pytest.raises(NotFrontalError, match="side view") as found:
+        frontal3d.reconstruct(photo, "car", plugins=plugins)
+    message = str(found.value)
+    assert "segmenter's" in message and "--mask" in message and "\n" not in message
 
 
 def test_report_names_every_stage_and_decision(plugins):
