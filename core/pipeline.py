@@ -63,7 +63,8 @@ MI_OUTLINE_SLACK = 0.05
 #: A hole in the segmenters' mask that the placed template mostly covers (TEMPLATE_COVERED_HOLE of
 #: its pixels) and under MAX_FILLED_HOLE of the mask's area is filled: a chrome hub or a window the
 #: segmenter took for the white background behind it. Larger ones stay (a glassless window, a
-#: box wing), as do the holes a template has itself and every hole in a mask the user gave.
+#: box wing), as do the holes a template has itself and every hole in a mask the user gave
+#: (the ``fill_holes`` setting turns it off).
 MAX_FILLED_HOLE = 0.05
 TEMPLATE_COVERED_HOLE = 0.5
 
@@ -386,7 +387,7 @@ def _reconstruct_shape_and_texture(
         rebuilt = occlusion.rebuild_silhouette(work_mask, work_occluders, aligned_template_mask, k=k, mirror_axis=mirror_axis)
         work_mask, occluded = rebuilt.mask, rebuilt.occluded
         report.data["occlusion"] = rebuilt.summary()
-        if _found_by_segmenters(report):
+        if settings["fill_holes"] and _found_by_segmenters(report):
             work_mask, filled = _template_holes_filled(work_mask, aligned_template_mask)
             if filled:
                 report.data["filled_hole_pixels"] = filled

@@ -123,11 +123,13 @@ def test_a_hole_the_segmenter_leaves_in_a_solid_part_is_filled(plugins):
 
     found = frontal3d.reconstruct(image, "car", plugins=plugins)
     given = frontal3d.reconstruct(image, "car", mask=holed > 0, plugins=plugins)
+    left_open = frontal3d.reconstruct(image, "car", plugins=plugins, fill_holes=False)
 
     working_radius = radius * found.report["working_size"][0] / found.report["crop"]["width"]
     assert found.report["filled_hole_pixels"] > 0.5 * np.pi * working_radius**2
     assert found.mesh.is_watertight and found.mesh.euler_number == 2  # solid: no hole through the door
     assert "filled_hole_pixels" not in given.report and given.mesh.euler_number == 0  # the user's hole stays
+    assert "filled_hole_pixels" not in left_open.report and left_open.mesh.euler_number == 0  # fill_holes = false
 
 
 def _side_by_side(*rgbas: np.ndarray, gap: int = 100) -> np.ndarray:
