@@ -206,6 +206,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--resolution", type=int, default=256, help="side of the square images (default: 256)")
     p.add_argument("--grain", type=float, default=0.0, help="share of backgrounds (0-1) that also get fine grain, as paper or fabric shows (default: 0)")
     p.add_argument("--clutter", type=float, default=0.0, help="share of samples (0-1) with blobs behind the object touching its outline, half in its own colours (default: 0)")
+    p.add_argument("--people", type=float, default=0.0, help="share of samples (0-1) with a drawn person: a player behind the object with arms across it, or someone in front of part of it (cut from the mask) (default: 0)")
     p.set_defaults(run=_cmd_synth)
 
     p = sub.add_parser("train", help="train a learned model (frontal gate, subtype, object segmenter, regions) on `synth` data", description="Train on a `frontal3d synth` folder (CPU), print the held-out score after each epoch and write a checkpoint. frontal, subtype: a small CNN on the masked object crop (held-out accuracy). segmenter: a small U-Net from the whole photo to the object's mask; regions: the same network from the object crop to the family's regions (held-out IoU). Use a checkpoint with the family setting weights = {TASK = \"CKPT\"}.")
@@ -450,14 +451,14 @@ def _cmd_synth(args: argparse.Namespace) -> int:
     from frontal3d.progress import counter
     from frontal3d.synth import synthesize
 
-    if args.count < 1 or args.resolution < 32 or not 0 <= args.grain <= 1 or not 0 <= args.clutter <= 1:
-        raise ConfigError("synth needs -n >= 1, --resolution >= 32 and --grain and --clutter between 0 and 1")
+    if args.count < 1 or args.resolution < 32 or not all(0 <= share <= 1 for share in (args.grain, args.clutter, args.people)):
+        raise ConfigError("synth needs -n >= 1, --resolution >= 32 and --grain, --clutter and --people between 0 and 1")
     plugins = _plugins(args)
     family = plugins.family(args.family)
     settings = plugins.settings(family.name)
     templates = {s: plugins.hook.frontal3d_template(family=family, subtype=s, settings=settings) for s in family.subtypes}
     with counter(args.count, "image") as bar:
-        labels = synthesize(family, templates, args.count, args.out, seed=args.seed, resolution=args.resolution, progress=bar.update, grain=args.grain, clutter=args.clutter)
+        labels = synthesize(family, templates, args.count, args.out, seed=args.seed, resolution=args.resolution, progress=bar.update, grain=args.grain, clutter=args.clutter, people=args.people)
     print(f"wrote {args.count} samples of {family.name} ({', '.join(templates)}) to {args.out}; labels in {labels}")
     return 0
 

@@ -23,6 +23,7 @@ import open3d as o3d
 
 from frontal3d.errors import InputError
 from frontal3d.family import Family, Template
+from frontal3d.synth_people import person_layers
 
 #: Largest |yaw| and |pitch| of a frontal (positive) sample, in degrees: the paper's ±10°.
 FRONTAL_LIMIT_DEG = 10.0
@@ -66,13 +67,14 @@ class Sample:
 
 def synthesize(family: Family, templates: dict[str, Template], count: int, out_dir: Path, seed: int = 0,
                resolution: int = 256, progress: Callable[[int], None] | None = None, grain: float = 0.0,
-               clutter: float = 0.0) -> Path:
+               clutter: float = 0.0, people: float = 0.0) -> Path:
     """Write ``count`` samples as images/, masks/, regions/ PNGs and labels.csv; returns the csv path.
 
     Subtypes take turns so every class is equally represented; region PNGs hold the
     region index + 1 (0 = background). ``grain``: the share of backgrounds that also get
-    fine grain; ``clutter``: the share that get blobs touching the object (both 0 by
-    default, which draws nothing more: older data sets stay identical).
+    fine grain; ``clutter``: the share that get blobs touching the object; ``people``: the
+    share with a procedural person behind or across it (:mod:`frontal3d.synth_people`; all
+    0 by default, which draws nothing more: older data sets stay identical).
     """
     for folder in ("images", "masks", "regions"):
         (out_dir / folder).mkdir(parents=True, exist_ok=True)
@@ -80,7 +82,7 @@ def synthesize(family: Family, templates: dict[str, Template], count: int, out_d
     rows = []
     for index in range(count):
         subtype = subtypes[index % len(subtypes)]
-        sample = render_sample(templates[subtype], np.random.default_rng([seed, index]), resolution, grain, clutter)
+        sample = render_sample(templates[subtype], np.random.default_rng([seed, index]), resolution, grain, clutter, people)
         name = f"{index:06d}.png"
         cv2.imwrite(str(out_dir / "images" / name), cv2.cvtColor(sample.image, cv2.COLOR_RGB2BGR))
         cv2.imwrite(str(out_dir / "masks" / name), sample.mask.astype(np.uint8) * 255)
@@ -96,7 +98,8 @@ def synthesize(family: Family, templates: dict[str, Template], count: int, out_d
     return labels
 
 
-def render_sample(template: Template, rng: np.random.Generator, resolution: int, grain: float = 0.0, clutter: float = 0.0) -> Sample:
+def render_sample(template: Template, rng: np.random.Generator, resolution: int, grain: float = 0.0, clutter: float = 0.0,
+                  people: float = 0.0) -> Sample:
     """One randomized photo of ``template`` (see the module docstring for what varies)."""
     frontal = bool(rng.random() >= NEGATIVE_FRACTION)
     yaw, pitch = _view_angles(rng, frontal)
@@ -117,7 +120,14 @@ def render_sample(template: Template, rng: np.random.Generator, resolution: int,
     background = _background(resolution, rng, grain)
     if clutter > 0 and rng.random() < clutter:
         background = _touching_blobs(background, mask, rgb, rng)
-    image = np.where(mask[..., None], rgb, background).astype(np.uint8)
+    image = np.where(mask[..., None], rgb, background)
+    if people > 0 and rng.random() < people and mask.any():
+        person = person_layers(mask, rgb, rng)
+        image = np.where(mask[..., None], image, background * (1 - person.behind[..., None]) + person.colour * person.behind[..., None])
+        image = image * (1 - person.front[..., None]) + person.colour * person.front[..., None]
+        mask = mask & (person.front < 0.5)
+        regions = np.where(mask, regions, -1)
+    image = np.clip(image, 0, 255).astype(np.uint8)
     return Sample(image=image, mask=mask, regions=regions.astype(np.int32), subtype=template.subtype, frontal=frontal, yaw=yaw, pitch=pitch)
 
 

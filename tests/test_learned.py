@@ -105,6 +105,26 @@ def test_synth_clutter_puts_blobs_behind_the_object_and_leaves_it_untouched(tmp_
     assert min(ring_changed) > 0.1  # every sample has clutter touching its outline
 
 
+def test_synth_people_stand_behind_or_across_the_object_and_what_is_in_front_leaves_its_mask(tmp_path):
+    plain, peopled = tmp_path / "plain", tmp_path / "peopled"
+    _synth(plain, 8, resolution=128)
+    assert main(["synth", "--family", "car", "-n", "8", "-o", str(peopled), "--seed", "5", "--resolution", "128", "--people", "1"]) == 0
+    assert main(["synth", "--family", "car", "-n", "1", "-o", str(tmp_path / "bad"), "--people", "2"]) == 2
+    hidden_shares, skin_beside = [], []
+    for index in range(8):
+        (image, mask), (busy, kept) = _sample(plain, index), _sample(peopled, index)
+        assert not (kept & ~mask).any()  # a person never adds to the object
+        hidden = mask & ~kept
+        clear = kept & ~cv2.dilate(hidden.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+        np.testing.assert_allclose(image[clear], busy[clear], atol=2)  # the object away from the person's soft edge is untouched
+        hidden_shares.append(1 - kept.sum() / mask.sum())
+        changed = np.abs(image.astype(int) - busy.astype(int)).max(axis=2) > 10
+        skin_beside.append(changed[~mask].mean())
+    assert all(share <= 0.5 for share in hidden_shares)  # the object stays mostly seen
+    assert sum(share > 0.01 for share in hidden_shares) >= 4  # arms or a body cross most objects
+    assert min(skin_beside) > 0.02  # every sample shows a person beside the object
+
+
 def test_trained_checkpoint_loads_and_reproduces_its_stored_prediction(trained):
     stored = torch.load(trained["subtype"], weights_only=True)
     model = load_classifier(trained["subtype"], "subtype", Plugins().family("car"))
