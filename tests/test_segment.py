@@ -475,6 +475,29 @@ def test_a_piece_the_network_rules_out_leaves_when_it_has_the_background_s_colou
     assert _iou(found & car, car) > 0.97
 
 
+def test_the_backdrop_grabcut_keeps_around_the_object_leaves_under_the_network_s_haze():
+    # A brown guitar-like body on a flat black backdrop (the people composites with no mask): a
+    # person crossing the border bends the background model, and GrabCut keeps a wide band of
+    # the backdrop around the body. The network is sure of the body but, on black, never quite
+    # rules the rest out: p 0.06 everywhere else, above the 0.03 the test once asked for.
+    from frontal3d.stages.segment import _cut_unvouched_pieces, _foreground
+
+    shape = (300, 300)
+    body = np.zeros(shape, np.uint8)
+    cv2.ellipse(body, (150, 200), (50, 60), 0, 0, 360, 1, -1)
+    body[40:150, 142:158] = 1
+    body = body > 0
+    band = cv2.dilate(body.astype(np.uint8), np.ones((61, 61), np.uint8)) > 0
+    image = _composite(np.zeros(shape + (3,)), body, (150, 100, 60), np.random.default_rng(3))
+    probability = np.where(body, 0.97, 0.06).astype(np.float32)
+    lab = cv2.GaussianBlur(cv2.cvtColor(image, cv2.COLOR_RGB2LAB).astype(np.float32), (0, 0), 1.5)
+    labels = _labels_for(band)
+    _cut_unvouched_pieces(labels, probability, lab, image)
+    found = _foreground(labels)
+    assert (found & ~body).sum() < 0.05 * (band & ~body).sum()
+    assert _iou(found & body, body) > 0.97
+
+
 def test_long_thin_gaps_the_network_vouches_for_join_the_foreground_and_corners_do_not():
     from frontal3d.stages.segment import _fill_vouched_strips, _foreground
 
