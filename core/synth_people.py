@@ -121,7 +121,7 @@ def _figure(resolution: int, anchor: tuple[int, int], head_radius: float, rng: n
 
 
 def _draw_face(skin: np.ndarray, centre: tuple[int, int], radius: float) -> None:
-    """Eyes and mouth as holes in the skin (they show the clothes' darker colour, as dark features)."""
+    """Eyes and mouth as holes in the skin, filled with the clothes' colour like the rest of the figure."""
     features = np.zeros(skin.shape, np.uint8)
     eye = max(1, int(radius * 0.12))
     for side in (-1, 1):
