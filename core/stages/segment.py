@@ -518,7 +518,8 @@ def _cut_background_colours(labels: np.ndarray, probability: np.ndarray, colours
     The network sees a blob beside the object through its 96 px blur and vouches for the part
     next to it (p 0.86 on a red blob beside a bass's body), so per colour that part looks
     believed and :func:`_cut_doubted_colours` keeps it. But the network is sure (p > 0.9) of
-    few of its pixels, while the object's own colours are sure on most of theirs, and the
+    few of its pixels, while the object's own colours are sure on most of theirs (or, from a
+    network that hedges everywhere, on far more of theirs: :func:`_own_colours`), and the
     blob goes on behind or beyond the object, where the background shows more of its colour
     than the foreground holds. An object's own colour is rarely scattered that widely around it.
     """
