@@ -15,7 +15,7 @@ from typing import Any, Sequence
 
 from frontal3d import __version__
 from frontal3d.config import find_config_path, load_config
-from frontal3d.errors import ConfigError, Frontal3DError
+from frontal3d.errors import ConfigError, Frontal3DError, NotFrontalError
 from frontal3d.plugins import Plugins
 
 
@@ -98,7 +98,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--all", action="store_true", help="reconstruct each separate object the classifier chain accepts, into OUTDIR/<stem>_<k>/ (k = 1 for the largest)")
     p.add_argument("-o", "--out", type=Path, default=Path("frontal3d-out"), help="output folder (default: ./frontal3d-out)")
     _add_set_option(p, "working_resolution=400")
-    p.add_argument("-v", "--verbose", action="store_true", help="log each stage and write intermediate maps to OUTDIR/<stem>/debug/")
+    p.add_argument("-v", "--verbose", action="store_true", help="log each stage and write intermediate maps to OUTDIR/<stem>/debug/; "
+                   "for a photo the classifier chain turns down, the outline it judged to OUTDIR/<stem>_turned_down.png")
     p.set_defaults(run=_cmd_reconstruct)
 
     p = sub.add_parser("families", help="list installed families, subtypes, views and regions")
@@ -262,6 +263,14 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
                 else:
                     results, folders = [reconstruct(image, args.family, **arguments)], [args.out / image.stem]
                 saved = [(result.report, result.save(folder, debug=args.verbose)) for result, folder in zip(results, folders)]
+            except NotFrontalError as exc:
+                if args.verbose and exc.outlines:
+                    exc = _pictured(exc, image, args.out)
+                if len(args.images) == 1:
+                    raise exc
+                failures += 1
+                progress.write(f"frontal3d: error: {image}: {exc}")
+                continue
             except Frontal3DError as exc:
                 if len(args.images) == 1:
                     raise
@@ -274,6 +283,23 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
                 for warning in report["warnings"]:
                     progress.write(f"  warning: {warning}")
     return 2 if failures else 0
+
+
+def _pictured(error: NotFrontalError, image: Path, out: Path) -> NotFrontalError:
+    """``error`` naming a sheet of the outlines it judged, written whole to OUTDIR/<stem>_turned_down.png."""
+    import os
+
+    from PIL import Image
+
+    from frontal3d.imageio import read_image
+    from frontal3d.preview import outline_sheet
+
+    target = out / f"{image.stem}_turned_down.png"
+    out.mkdir(parents=True, exist_ok=True)
+    staging = target.with_name(f".{target.name}.partial")
+    Image.fromarray(outline_sheet(read_image(image)[..., :3], error.outlines)).save(staging, format="PNG")
+    os.replace(staging, target)
+    return NotFrontalError(f"{error}; the outline judged: {target}", error.outlines)
 
 
 def _cmd_families(args: argparse.Namespace) -> int:

@@ -4,6 +4,13 @@ Every failure the pipeline can foresee is a :class:`Frontal3DError`; the CLI pri
 its message on one line and exits non-zero, so the message must name the cause.
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import numpy as np
+
 
 class Frontal3DError(Exception):
     """Base class: a foreseen failure with a one-line, user-facing message."""
@@ -20,7 +27,16 @@ class NoObjectError(Frontal3DError):
 
 
 class NotFrontalError(Frontal3DError):
-    """The classifier chain rejected the view (not the family's canonical view)."""
+    """The classifier chain rejected the view (not the family's canonical view).
+
+    ``outlines`` maps each family that turned the image down to the object mask it judged,
+    so the CLI can picture the verdict (``reconstruct -v``): a wrong outline explains most
+    wrong verdicts, and it is easier to see than to describe.
+    """
+
+    def __init__(self, message: str, outlines: dict[str, np.ndarray] | None = None):
+        super().__init__(message)
+        self.outlines = dict(outlines or {})
 
 
 class ConfigError(Frontal3DError):

@@ -210,6 +210,7 @@ def _reconstruct_objects(image: np.ndarray | str | Path, family: str | None, mas
     several_families = len(candidates) > 1
     chosen: tuple[Family, dict[str, Any], list[_Accepted], list[tuple[int, str]], int] | None = None
     rejections: list[str] = []
+    judged_outlines: dict[str, np.ndarray] = {}
     people: np.ndarray | None = None
     people_evidence: str | None = None
     for index, fam in enumerate(candidates):
@@ -239,14 +240,16 @@ def _reconstruct_objects(image: np.ndarray | str | Path, family: str | None, mas
             if not every:
                 break
         if not accepted:
+            judged_outlines[fam.name] = segmentation.objects[turned_down[0][0]]
             if not several_families:
-                raise _with_mask_hint(turned_down[0][1], report)
+                raise _with_mask_hint(turned_down[0][1], report, judged_outlines)
             rejections.append(f"{fam.name}: {turned_down[0][1]}")
             continue
         if chosen is None or accepted[0].frontal_confidence > chosen[2][0].frontal_confidence:
             chosen = (fam, fam_settings, accepted, [(rank, str(exc)) for rank, exc in turned_down], len(segmentation.objects))
     if chosen is None:
-        raise _with_mask_hint(NotFrontalError("no installed family accepts this image: " + "; ".join(rejections)), report)
+        raise _with_mask_hint(NotFrontalError("no installed family accepts this image: " + "; ".join(rejections)), report,
+                              judged_outlines)
     fam, fam_settings, accepted, turned_down, found = chosen
     results = []
     for candidate in accepted:
@@ -913,14 +916,15 @@ def _consistent_pivots(outline_in: np.ndarray, outline_tpl: np.ndarray, inner_in
     return inner_in[keep], inner_tpl[keep]
 
 
-def _with_mask_hint(error: NotFrontalError, report: Report) -> NotFrontalError:
-    """The chain's reason, and when the outline it judged is the core segmenters' own, that a
-    mask can be given: a wrong mask (a kerb taken in, a wing cut off) is turned down for a view
-    it does not show."""
+def _with_mask_hint(error: NotFrontalError, report: Report, outlines: dict[str, np.ndarray]) -> NotFrontalError:
+    """The chain's reason with the outlines it judged (per family) and, when they are the core
+    segmenters' own, that a mask can be given: a wrong mask (a kerb taken in, a wing cut off) is
+    turned down for a view it does not show."""
     if not _found_by_segmenters(report):
-        return error
+        return NotFrontalError(str(error), outlines)
     segmenter = report.data["segmenter"].split(" (")[0]
-    return NotFrontalError(f"{error} (the outline judged is the {segmenter}'s: if it is not the object's, give a mask with --mask)")
+    return NotFrontalError(f"{error} (the outline judged is the {segmenter}'s: if it is not the object's, give a mask with --mask)",
+                           outlines)
 
 
 def _found_by_segmenters(report: Report) -> bool:

@@ -1,9 +1,12 @@
-"""CPU preview of a textured model: four orthographic views in one PNG.
+"""Pictures a user looks at instead of reading numbers.
 
-A user (or a test) can check the texture landed where it should without a 3D
-viewer: rays are cast with open3d's RaycastingScene, each hit's barycentric
-coordinates interpolate the triangle's UVs, the atlas is sampled bilinearly and
-shaded with a simple Lambert term so the relief of the geometry stays readable.
+- A textured model's preview, four orthographic views in one PNG: a user (or a test)
+  can check the texture landed where it should without a 3D viewer. Rays are cast
+  with open3d's RaycastingScene, each hit's barycentric coordinates interpolate the
+  triangle's UVs, the atlas is sampled bilinearly and shaded with a simple Lambert
+  term so the relief of the geometry stays readable.
+- The outline a turned-down photo was judged by (:func:`outline_sheet`): most wrong
+  verdicts come from a wrong outline (a kerb taken in, a wing lost), which one look shows.
 """
 
 from __future__ import annotations
@@ -103,3 +106,27 @@ def render_preview(textured: TexturedMesh, out_png: Path, size: int = 512) -> np
     sheet = np.concatenate([np.concatenate(tiles[:2], axis=1), np.concatenate(tiles[2:], axis=1)], axis=0)
     Image.fromarray(sheet).save(out_png)
     return sheet
+
+
+#: Long side, in pixels, of each panel of :func:`outline_sheet`.
+OUTLINE_PANEL = 640
+#: Outline colour (RGB) and how bright the photo stays outside the outline.
+OUTLINE_COLOUR = (255, 0, 200)
+OUTSIDE_BRIGHTNESS = 0.35
+
+
+def outline_sheet(rgb: np.ndarray, outlines: dict[str, np.ndarray]) -> np.ndarray:
+    """RGB sheet, one panel per family: the photo dimmed outside the outline judged, the
+    outline drawn over it and labelled with the family."""
+    scale = min(1.0, OUTLINE_PANEL / max(rgb.shape[:2]))
+    size = (max(1, round(rgb.shape[1] * scale)), max(1, round(rgb.shape[0] * scale)))
+    photo = cv2.resize(rgb, size, interpolation=cv2.INTER_AREA)
+    panels = []
+    for family, mask in outlines.items():
+        inside = cv2.resize(mask.astype(np.uint8), size, interpolation=cv2.INTER_NEAREST) > 0
+        panel = np.where(inside[..., None], photo, (photo * OUTSIDE_BRIGHTNESS).astype(np.uint8))
+        contours, _ = cv2.findContours(inside.astype(np.uint8), cv2.RETR_LIST, cv2.CHAIN_APPROX_NONE)
+        cv2.drawContours(panel, contours, -1, OUTLINE_COLOUR, 2, cv2.LINE_AA)
+        cv2.putText(panel, f"{family}: outline judged", (10, 28), cv2.FONT_HERSHEY_SIMPLEX, 0.7, (255, 255, 255), 2, cv2.LINE_AA)
+        panels.append(panel)
+    return np.concatenate(panels, axis=1)

@@ -200,6 +200,37 @@ def test_a_turned_down_outline_the_segmenter_found_points_to_mask(plugins):
     assert "segmenter's" in message and "--mask" in message and "\n" not in message
 
 
+def test_verbose_pictures_the_outline_a_turned_down_photo_was_judged_by(plugins, tmp_path, capsys):
+    """With -v the one-line error names a sheet showing the outline the chain judged: the
+    photo as it is inside the outline, dimmed outside it. Without -v nothing is written."""
+    import cv2
+
+    from frontal3d.preview import OUTSIDE_BRIGHTNESS
+
+    rgba, _ = _template_photo(plugins, "car", "sedan", rotate_y_deg=90)
+    car = rgba[..., 3] > 0
+    rgba[~car, :3] = 200  # a grey backdrop, which the alpha channel leaves out
+    image = tmp_path / "front_on.png"
+    cv2.imwrite(str(image), cv2.cvtColor(rgba, cv2.COLOR_RGBA2BGRA))
+    assert main(["reconstruct", str(image), "--family", "car", "-o", str(tmp_path / "quiet")]) == 2
+    assert not (tmp_path / "quiet").exists()
+
+    out = tmp_path / "out"
+    assert main(["reconstruct", str(image), "--family", "car", "-o", str(out), "-v"]) == 2
+    error = capsys.readouterr().err.strip().splitlines()[-1]
+    sheet_path = out / "front_on_turned_down.png"
+    assert error.startswith("frontal3d: error: ") and "side view" in error and str(sheet_path) in error
+    assert sorted(p.name for p in out.iterdir()) == [sheet_path.name]
+    sheet = cv2.cvtColor(cv2.imread(str(sheet_path)), cv2.COLOR_BGR2RGB).astype(int)
+    assert sheet.shape[:2] == rgba.shape[:2]
+    inside = cv2.erode(car.astype(np.uint8), np.ones((7, 7), np.uint8)) > 0
+    outside = cv2.dilate(car.astype(np.uint8), np.ones((7, 7), np.uint8)) == 0
+    outside[:40] = False  # the label
+    photo = rgba[..., :3].astype(int)
+    assert np.abs(sheet[inside] - photo[inside]).max() <= 1
+    assert np.abs(sheet[outside] - (photo[outside] * OUTSIDE_BRIGHTNESS).astype(int)).max() <= 1
+
+
 def test_report_names_every_stage_and_decision(plugins):
     rgba, _ = _template_photo(plugins, "airplane", "airliner")
     result = frontal3d.reconstruct(rgba, "airplane", plugins=plugins)
