@@ -13,9 +13,9 @@ from frontal3d.family import Family, Template
 from frontal3d.plugins import Plugins
 from frontal3d.render import TemplateRenders, render_template
 from frontal3d.stages.align import Similarity
-from frontal3d.stages.classify import ClassifierContext, FrontalGate
+from frontal3d.stages.classify import ClassifierContext, FrontalGate, _turned_template
 from frontal3d.stages.occlusion import VisibleAgreementContext
-from frontal3d.stages.turned_views import turn_evidence, turned_hypotheses
+from frontal3d.stages.turned_views import TurnEvidence, turn_evidence, turned_hypotheses
 from shapes import SLAB_GUITAR_FAMILY, box_car, slab_guitar, strip_beside
 
 FAMILY = Family(name="car", subtypes=("sedan",), canonical_view="side", regions={"sedan": ("body",)},
@@ -125,3 +125,16 @@ def test_turned_template_test_does_not_judge_an_outline_a_person_beside_it_may_h
     assert not _guitar_gate(guitar_template, mask).accepted
     beside = strip_beside(mask)
     assert _guitar_gate(guitar_template, mask, view_hidden=beside).accepted
+
+
+@pytest.mark.parametrize(("turned_iou", "frontal_iou", "shown"), [(0.854, 0.849, "0.854 vs 0.849"), (0.88, 0.80, "0.88 vs 0.80")])
+def test_the_reason_shows_the_turned_view_ahead(turned_iou, frontal_iou, shown):
+    """A near tie read to two places would say "fits better: 0.85 vs 0.85"."""
+    class Context:
+        family = SLAB_GUITAR_FAMILY
+
+        @staticmethod
+        def turn_evidence() -> TurnEvidence:
+            return TurnEvidence(frontal_iou=frontal_iou, turned_iou=turned_iou, turned_axis="pitch", turned_degrees=30.0)
+
+    assert f"fits its outline better: {shown})" in _turned_template(Context(), 0.0)

@@ -311,8 +311,10 @@ def _turned_template(context: ClassifierContext, margin: float) -> str | None:
     if evidence.margin >= -margin:
         return None
     direction = "sideways" if evidence.turned_axis == "yaw" else "up or down"
+    # Enough digits that "better" shows: a near tie read to two places says "0.85 vs 0.85".
+    digits = 2 if round(evidence.turned_iou, 2) != round(evidence.frontal_iou, 2) else 3
     return (f"looks turned about {abs(evidence.turned_degrees):.0f}° {direction} from a {context.family.canonical_view} view (a turned "
-            f"template fits its outline better: {evidence.turned_iou:.2f} vs {evidence.frontal_iou:.2f})")
+            f"template fits its outline better: {evidence.turned_iou:.{digits}f} vs {evidence.frontal_iou:.{digits}f})")
 
 
 def _lopsided(context: ClassifierContext, margin: float) -> str | None:
