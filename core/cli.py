@@ -212,7 +212,8 @@ def _parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("train", help="train a learned model (frontal gate, subtype, object segmenter, regions) on `synth` data", description="Train on a `frontal3d synth` folder (CPU), print the held-out score after each epoch and write a checkpoint. frontal, subtype: a small CNN on the masked object crop (held-out accuracy). segmenter: a small U-Net from the whole photo to the object's mask; regions: the same network from the object crop to the family's regions (held-out IoU). Use a checkpoint with the family setting weights = {TASK = \"CKPT\"}.")
     p.add_argument("task", choices=["frontal", "subtype", "segmenter", "regions"])
-    p.add_argument("--data", type=Path, required=True, help="folder written by `frontal3d synth`")
+    p.add_argument("--data", type=Path, required=True, nargs="+", metavar="DIR",
+                   help="folder written by `frontal3d synth`; the segmenter takes several, of any families (the checkpoint is the first one's family's)")
     p.add_argument("-o", "--out", type=Path, required=True, help="checkpoint to write (.pt)")
     p.add_argument("--epochs", type=int, default=8)
     p.add_argument("--seed", type=int, default=0)
@@ -501,8 +502,10 @@ def _cmd_train(args: argparse.Namespace) -> int:
     if args.task in DENSE_TASKS:
         dataset = load_dense_dataset(args.data, args.task, _plugins(args).family, size=args.size or DENSE_INPUT_SIZE)
         what = "object segmenter" if args.task == "segmenter" else "region model"
+    elif len(args.data) > 1:
+        raise ConfigError(f"the {args.task} classifier trains on one family's folder; give one --data")
     else:
-        dataset = load_dataset(args.data, args.task)
+        dataset = load_dataset(args.data[0], args.task)
         what = f"{args.task} classifier"
     print(f"{what} for {dataset.family}: {len(dataset.targets)} samples, classes {', '.join(dataset.classes)}")
     result = train(dataset, args.task, args.out, epochs=args.epochs, seed=args.seed)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 import cv2
 import numpy as np
@@ -164,24 +164,30 @@ def load_dataset(data_dir: Path, task: str, size: int = INPUT_SIZE) -> Dataset:
     return Dataset(family=families[0], classes=classes, crops=crops, targets=np.asarray(targets, np.int64))
 
 
-def load_dense_dataset(data_dir: Path, task: str, family_of: Callable[[str], Family], size: int = DENSE_INPUT_SIZE) -> Dataset:
-    """Read a ``frontal3d synth`` folder for a dense task, every sample (frontal or turned).
+def load_dense_dataset(data_dirs: Sequence[Path], task: str, family_of: Callable[[str], Family], size: int = DENSE_INPUT_SIZE) -> Dataset:
+    """Read ``frontal3d synth`` folders for a dense task, every sample (frontal or turned).
 
-    ``family_of`` looks up the family labels.csv names. ``segmenter``: the letterboxed photo and its object mask. ``regions``: the object crop
-    plus mask and its region map, relabelled from each subtype's region indices to the
-    family's region set (:func:`frontal3d.learned_dense.family_region_names`).
+    ``family_of`` looks up the family labels.csv names; the model is the first folder's
+    family's. ``segmenter``: the letterboxed photo and its object mask, from any number of
+    folders of any families (where an object ends is the same question for every family; the
+    car segmenter does better over clutter for the airplanes and guitars it saw, see
+    families/car/weights/README.md). ``regions``: one folder; the object crop plus mask and its region
+    map, relabelled from each subtype's region indices to the family's region set
+    (:func:`frontal3d.learned_dense.family_region_names`).
     """
     if task not in DENSE_TASKS:
         raise ConfigError(f"unknown task {task!r} (tasks: {', '.join(DENSE_TASKS)})")
-    rows, families = read_family_labels(data_dir)
-    family = family_of(families[0])
+    if task != "segmenter" and len(data_dirs) != 1:
+        raise ConfigError(f"the {task} task trains on one family's folder; give one --data")
+    samples = [(data_dir, row) for data_dir in data_dirs for row in read_family_labels(data_dir)[0]]
+    family = family_of(read_family_labels(data_dirs[0])[1][0])
     classes = list(SEGMENTER_CLASSES) if task == "segmenter" else family_region_names(family)
     # per subtype: its region index -> index in the family's region set (background, -1, stays -1)
     relabel = {} if task == "segmenter" else {
         subtype: np.array([classes.index(name) for name in family.regions[subtype]] + [-1]) for subtype in family.subtypes
     }
     inputs, targets = [], []
-    for row in rows:
+    for data_dir, row in samples:
         image, mask = read_sample(data_dir, row["file"])
         if task == "segmenter":
             inputs.append(letterbox(image, size)[0])
