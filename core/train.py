@@ -170,8 +170,8 @@ def load_dense_dataset(data_dirs: Sequence[Path], task: str, family_of: Callable
     ``family_of`` looks up the family labels.csv names; the model is the first folder's
     family's. ``segmenter``: the letterboxed photo and its object mask, from any number of
     folders of any families (where an object ends is the same question for every family; the
-    car segmenter does better over clutter for the airplanes and guitars it saw, see
-    families/car/weights/README.md). ``regions``: one folder; the object crop plus mask and its region
+    car segmenter, trained so, does better over clutter: families/car/weights/README.md).
+    ``regions``: one folder; the object crop plus mask and its region
     map, relabelled from each subtype's region indices to the family's region set
     (:func:`frontal3d.learned_dense.family_region_names`).
     """

@@ -225,12 +225,15 @@ def test_shipped_airplane_segmenter_keeps_a_dark_blob_under_the_wing_tip_out():
 
 
 @pytest.mark.skipif(not SHIPPED.is_file(), reason="no shipped car segmenter")
-def test_shipped_car_segmenter_finds_a_pale_car_over_blobs(car):
+def test_shipped_car_segmenter_finds_a_pale_car_over_blobs(car, monkeypatch):
     # The example car repainted pale (a quarter of its colour over grey 185) over the mask
     # benchmark's blob background (seed 25). The network trained on cars alone, painted in random
     # saturated colours, was sure of almost none of it and found it only in the photo's negative
-    # (IoU 0.9998 with that view, under 0.5 without); the one trained with other families'
+    # (IoU over 0.95 with that view, under 0.5 without); the one trained with other families'
     # samples too sees it in the photo itself.
+    found, truth = _shipped_mask_over_blobs(SHIPPED, car[1], EXAMPLE_PNG, seed=25, pale=True)
+    assert _iou(found, truth) > 0.95
+    monkeypatch.setattr(learned_dense, "NEGATIVE_VIEW_SHARE", 0.0)
     found, truth = _shipped_mask_over_blobs(SHIPPED, car[1], EXAMPLE_PNG, seed=25, pale=True)
     assert _iou(found, truth) > 0.95
 
