@@ -264,17 +264,11 @@ def _cmd_reconstruct(args: argparse.Namespace) -> int:
                 else:
                     results, folders = [reconstruct(image, args.family, **arguments)], [args.out / image.stem]
                 saved = [(result.report, result.save(folder, debug=args.verbose)) for result, folder in zip(results, folders)]
-            except NotFrontalError as exc:
-                if args.verbose and exc.outlines:
+            except Frontal3DError as exc:
+                if isinstance(exc, NotFrontalError) and args.verbose and exc.outlines:
                     exc = _pictured(exc, image, args.out)
                 if len(args.images) == 1:
                     raise exc
-                failures += 1
-                progress.write(f"frontal3d: error: {image}: {exc}")
-                continue
-            except Frontal3DError as exc:
-                if len(args.images) == 1:
-                    raise
                 failures += 1
                 named = str(image) in str(exc)  # most messages name the file already
                 progress.write(f"frontal3d: error: {exc}" if named else f"frontal3d: error: {image}: {exc}")
@@ -493,7 +487,7 @@ def _cmd_synth(args: argparse.Namespace) -> int:
 def _cmd_train(args: argparse.Namespace) -> int:
     from frontal3d.learned import DENSE_TASKS
     from frontal3d.learned_dense import DENSE_INPUT_SIZE
-    from frontal3d.train import load_dataset, load_dense_dataset, train
+    from frontal3d.train import load_dataset, load_dense_dataset, single_folder, train
 
     if args.epochs < 1:
         raise ConfigError("--epochs must be at least 1")
@@ -502,10 +496,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
     if args.task in DENSE_TASKS:
         dataset = load_dense_dataset(args.data, args.task, _plugins(args).family, size=args.size or DENSE_INPUT_SIZE)
         what = "object segmenter" if args.task == "segmenter" else "region model"
-    elif len(args.data) > 1:
-        raise ConfigError(f"the {args.task} classifier trains on one family's folder; give one --data")
     else:
-        dataset = load_dataset(args.data[0], args.task)
+        dataset = load_dataset(single_folder(args.data, args.task), args.task)
         what = f"{args.task} classifier"
     print(f"{what} for {dataset.family}: {len(dataset.targets)} samples, classes {', '.join(dataset.classes)}")
     result = train(dataset, args.task, args.out, epochs=args.epochs, seed=args.seed)

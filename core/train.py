@@ -164,6 +164,13 @@ def load_dataset(data_dir: Path, task: str, size: int = INPUT_SIZE) -> Dataset:
     return Dataset(family=families[0], classes=classes, crops=crops, targets=np.asarray(targets, np.int64))
 
 
+def single_folder(data_dirs: Sequence[Path], task: str) -> Path:
+    """The one folder every task but the segmenter trains on (its labels and classes are one family's)."""
+    if len(data_dirs) != 1:
+        raise ConfigError(f"the {task} task trains on one family's folder; give one --data")
+    return data_dirs[0]
+
+
 def load_dense_dataset(data_dirs: Sequence[Path], task: str, family_of: Callable[[str], Family], size: int = DENSE_INPUT_SIZE) -> Dataset:
     """Read ``frontal3d synth`` folders for a dense task, every sample (frontal or turned).
 
@@ -177,10 +184,11 @@ def load_dense_dataset(data_dirs: Sequence[Path], task: str, family_of: Callable
     """
     if task not in DENSE_TASKS:
         raise ConfigError(f"unknown task {task!r} (tasks: {', '.join(DENSE_TASKS)})")
-    if task != "segmenter" and len(data_dirs) != 1:
-        raise ConfigError(f"the {task} task trains on one family's folder; give one --data")
-    samples = [(data_dir, row) for data_dir in data_dirs for row in read_family_labels(data_dir)[0]]
-    family = family_of(read_family_labels(data_dirs[0])[1][0])
+    if task != "segmenter":
+        data_dirs = [single_folder(data_dirs, task)]
+    labelled = [(data_dir, *read_family_labels(data_dir)) for data_dir in data_dirs]
+    samples = [(data_dir, row) for data_dir, rows, _families in labelled for row in rows]
+    family = family_of(labelled[0][2][0])
     classes = list(SEGMENTER_CLASSES) if task == "segmenter" else family_region_names(family)
     # per subtype: its region index -> index in the family's region set (background, -1, stays -1)
     relabel = {} if task == "segmenter" else {
