@@ -28,7 +28,7 @@ def frontal3d_segment(image: np.ndarray, family: Family, settings: dict[str, Any
 @hookimpl(specname="frontal3d_segment")
 def learned_segmenter(image: np.ndarray, family: Family, settings: dict[str, Any], hints: dict[str, Any]) -> np.ndarray | None:
     """The learned segmenter when the family's ``weights`` name one (refined on the photo's edges), else pass."""
-    model = learned_dense.configured_model(settings, "segmenter", family)
+    model = learned_dense.configured_segmenter(settings, family, image[..., :3])
     return None if model is None else model.object_mask(image[..., :3])
 
 

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 import cv2
 import numpy as np
 
+from frontal3d import occluders as people_detector
 from frontal3d.errors import ConfigError
 from frontal3d.family import Family
 from frontal3d.learned import (
@@ -159,3 +160,23 @@ def configured_model(settings: dict[str, Any], task: str, family: Family) -> Den
     """The family's ``weights`` checkpoint for ``task``, loaded once per process, or None when none is configured."""
     path = (settings.get("weights") or {}).get(task)
     return cached_model(path, task, family, load_dense) if path else None
+
+
+def segmenter_weights(settings: dict[str, Any], image: np.ndarray) -> str | None:
+    """The segmenter checkpoint for ``image``: ``weights.segmenter_with_people`` when the family
+    names one and the people detector sees a person (a pose or a face), else ``weights.segmenter``.
+
+    A network trained longer learns clutter better but also learns the drawn people of its
+    synthetic data too well, and then doubts a real guitarist's wood beside a face
+    (families/guitar/weights/README.md). The detector runs on every photo anyway (faces are
+    cut from the mask, arms are occluders), so choosing per photo costs nothing."""
+    weights = settings.get("weights") or {}
+    if weights.get("segmenter_with_people") and people_detector.person_seen(image):
+        return weights["segmenter_with_people"]
+    return weights.get("segmenter")
+
+
+def configured_segmenter(settings: dict[str, Any], family: Family, image: np.ndarray) -> DenseModel | None:
+    """The loaded :func:`segmenter_weights` checkpoint for ``image``, or None when none is configured."""
+    path = segmenter_weights(settings, image)
+    return cached_model(path, "segmenter", family, load_dense) if path else None

@@ -144,6 +144,12 @@ def detect_people_with_evidence(image: np.ndarray, object_mask: np.ndarray | Non
     return cv2.resize(person.astype(np.uint8), (width, height), interpolation=cv2.INTER_NEAREST) > 0, evidence
 
 
+def person_seen(image: np.ndarray) -> bool:
+    """Whether a pose or a face shows a person, before any object is found (the segmenter
+    alone does not count: it fires on plain guitar bodies and soft blobs)."""
+    return detect_people_with_evidence(image)[1] is not None
+
+
 def detect_faces(image: np.ndarray) -> np.ndarray | None:
     """Bool mask (image-sized) of people's faces, or None if there is none.
 

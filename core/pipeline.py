@@ -533,7 +533,7 @@ def segment_object(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dic
         objects[0] = _refine_with_templates(plugins, rgb, objects[0], occluders, fam, settings, subtype, report)
     if settings["mirror_repair"] and segmented_here and occluders is None:
         # Not a mask the user gave, nor one with people in front: those may be rightly lopsided.
-        network = learned_dense.configured_model(settings, "segmenter", fam)
+        network = learned_dense.configured_segmenter(settings, fam, rgb[..., :3])
         probability = network.object_probability_either_tone(rgb) if network is not None else None
         objects = [_mirror_repaired(rgb, mask, probability, index, report) for index, mask in enumerate(objects)]
     return Segmentation(objects, occluders, found, user_occluders)
@@ -565,19 +565,19 @@ def _segment(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dict[str,
         for impl in reversed(impls):
             found = impl.function(**{name: arguments[name] for name in impl.argnames})
             if found is not None:
-                report.data["segmenter"] = _segmenter_name(impl, user_mask, settings)
+                report.data["segmenter"] = _segmenter_name(impl, user_mask, settings, rgb)
                 break
     if found is None or not np.asarray(found).any():
         raise NoObjectError(f"no {fam.name} found in the image (give a mask with --mask if the object is there)")
     return np.asarray(found, dtype=bool)
 
 
-def _segmenter_name(impl: Any, user_mask: np.ndarray | None, settings: dict[str, Any]) -> str:
+def _segmenter_name(impl: Any, user_mask: np.ndarray | None, settings: dict[str, Any], rgb: np.ndarray) -> str:
     """What report.json calls the segmenter that answered."""
     if impl.plugin_name != "frontal3d":
         return f"plugin {impl.plugin_name} ({impl.function.__name__})"
     if impl.function.__name__ == "learned_segmenter":
-        return f"learned segmenter ({settings['weights']['segmenter']})"
+        return f"learned segmenter ({learned_dense.segmenter_weights(settings, rgb[..., :3])})"
     if impl.function.__name__ == "classical_segmenter":
         return "GrabCut (training-free)"
     return "user mask" if user_mask is not None else "alpha channel"
