@@ -33,6 +33,10 @@ if TYPE_CHECKING:
 #: Bump when the checkpoint layout changes meaning; older checkpoints are then refused.
 FORMAT_VERSION = 1
 ARCHITECTURE = "compact_resnet_v1"
+#: The classifiers' larger option: torchvision's ResNet-18 layout (``train --arch resnet18``).
+RESNET18_ARCHITECTURE = "resnet18_v1"
+#: ``train --arch`` names of the classifier architectures.
+CLASSIFIER_ARCHITECTURES = {"compact": ARCHITECTURE, "resnet18": RESNET18_ARCHITECTURE}
 #: Side of the square crop the networks see (the paper's 3.1.2 crops to the object too).
 INPUT_SIZE = 128
 #: Channel widths of the four residual stages (about 0.3 M parameters, 1.2 MB).
@@ -43,7 +47,8 @@ DENSE_TASKS = ("segmenter", "regions")
 TASKS = CLASSIFIER_TASKS + DENSE_TASKS
 #: The dense tasks' small encoder-decoder.
 DENSE_ARCHITECTURE = "tiny_unet_v1"
-ARCHITECTURES = {**{task: ARCHITECTURE for task in CLASSIFIER_TASKS}, **{task: DENSE_ARCHITECTURE for task in DENSE_TASKS}}
+#: The architectures a checkpoint of each task may have.
+ARCHITECTURES = {**{task: tuple(CLASSIFIER_ARCHITECTURES.values()) for task in CLASSIFIER_TASKS}, **{task: (DENSE_ARCHITECTURE,) for task in DENSE_TASKS}}
 #: Class names of the frontal gate, in output order.
 GATE_CLASSES = ("not frontal", "frontal")
 #: Margin around the object's box kept in the crop, as a fraction of its long side.
@@ -130,7 +135,7 @@ def load_classifier(path: Path | str, task: str | None = None, family: Family | 
     Raises :class:`ConfigError` with a one-line message for a missing, unreadable,
     corrupt or mismatched checkpoint (wrong task, family or classes).
     """
-    from frontal3d.train import CompactResNet
+    from frontal3d.train import classifier_network
 
     path = Path(path)
     checkpoint = read_checkpoint(path, task)
@@ -140,11 +145,11 @@ def load_classifier(path: Path | str, task: str | None = None, family: Family | 
         gate = checkpoint["task"] == "frontal"
         check_family(path, checkpoint, family, list(GATE_CLASSES) if gate else sorted(family.subtypes), "gate" if gate else "subtypes")
     classes = [str(c) for c in checkpoint["classes"]]
-    model = CompactResNet(len(classes), tuple(int(w) for w in checkpoint["widths"]))
+    model = classifier_network(checkpoint["architecture"], len(classes), tuple(int(w) for w in checkpoint["widths"]))
     try:
         model.load_state_dict(checkpoint["state_dict"])
     except (RuntimeError, KeyError, TypeError) as exc:
-        raise ConfigError(f"{path}: weights do not fit the {ARCHITECTURE} network ({one_line(exc)})") from exc
+        raise ConfigError(f"{path}: weights do not fit the {checkpoint['architecture']} network ({one_line(exc)})") from exc
     model.eval()
     classifier = LearnedClassifier(path, checkpoint["task"], checkpoint["family"], classes, int(checkpoint["input_size"]), model, dict(checkpoint.get("training", {})))
     check_reference(path, lambda: classifier.probabilities_of_crop(checkpoint["reference_input"].numpy()), checkpoint["reference_probabilities"])
@@ -163,11 +168,11 @@ def read_checkpoint(path: Path, task: str | None) -> dict[str, Any]:
         raise ConfigError(f"{path}: not a readable frontal3d checkpoint ({one_line(exc)})") from exc
     if not isinstance(checkpoint, dict) or any(key not in checkpoint for key in _REQUIRED_KEYS):
         raise ConfigError(f"{path}: not a frontal3d checkpoint (written by `frontal3d train`)")
-    expected = ARCHITECTURES.get(checkpoint["task"])
-    if checkpoint["format_version"] != FORMAT_VERSION or checkpoint["architecture"] != expected:
+    expected = ARCHITECTURES.get(checkpoint["task"], ())
+    if checkpoint["format_version"] != FORMAT_VERSION or checkpoint["architecture"] not in expected:
         raise ConfigError(
             f"{path}: checkpoint format {checkpoint['format_version']} / {checkpoint['architecture']} is not the supported "
-            f"{FORMAT_VERSION} / {expected}; retrain it with `frontal3d train`"
+            f"{FORMAT_VERSION} / {' or '.join(expected) or 'any'}; retrain it with `frontal3d train`"
         )
     if task is not None and checkpoint["task"] != task:
         raise ConfigError(f"{path}: this checkpoint classifies {checkpoint['task']!r}, but it is configured as the {task!r} weights")

@@ -21,7 +21,10 @@ from torch.nn import functional
 
 from frontal3d.errors import ConfigError, InputError
 from frontal3d.family import Family
-from frontal3d.learned import ARCHITECTURES, CLASSIFIER_TASKS, DENSE_TASKS, FORMAT_VERSION, GATE_CLASSES, INPUT_SIZE, WIDTHS, crop_square, cut_square, object_crop, to_tensor
+from frontal3d.learned import (
+    ARCHITECTURE, CLASSIFIER_TASKS, DENSE_ARCHITECTURE, DENSE_TASKS, FORMAT_VERSION, GATE_CLASSES, INPUT_SIZE,
+    RESNET18_ARCHITECTURE, WIDTHS, crop_square, cut_square, object_crop, to_tensor,
+)
 from frontal3d.learned_dense import DENSE_INPUT_SIZE, DENSE_WIDTHS, SEGMENTER_CLASSES, dense_probabilities, family_region_names, letterbox, regions_input
 from frontal3d.progress import counter
 from frontal3d.synth import read_family_labels, read_sample, read_sample_regions
@@ -66,6 +69,58 @@ class CompactResNet(nn.Module):
         return self.head(self.stages(self.stem(x)).mean(dim=(2, 3)))
 
 
+class _BasicBlock(nn.Module):
+    """torchvision's ResNet basic block, with its module names (conv1, bn1, conv2, bn2, downsample)."""
+
+    def __init__(self, in_channels: int, out_channels: int, stride: int):
+        super().__init__()
+        self.conv1 = nn.Conv2d(in_channels, out_channels, 3, stride, 1, bias=False)
+        self.bn1 = nn.BatchNorm2d(out_channels)
+        self.conv2 = nn.Conv2d(out_channels, out_channels, 3, 1, 1, bias=False)
+        self.bn2 = nn.BatchNorm2d(out_channels)
+        self.downsample = (nn.Sequential(nn.Conv2d(in_channels, out_channels, 1, stride, bias=False), nn.BatchNorm2d(out_channels))
+                           if stride != 1 or in_channels != out_channels else None)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        out = self.bn2(self.conv2(torch.relu(self.bn1(self.conv1(x)))))
+        return torch.relu(out + (x if self.downsample is None else self.downsample(x)))
+
+
+class ResNet18(nn.Module):
+    """ResNet-18 (He et al. 2016) in torchvision's layout and module names, so a state dict of
+    ``torchvision.models.resnet18(num_classes=N)`` loads into it and back. Written out here
+    because the torchvision wheels built for torch 2.13 need CUDA's libraries, which the CPU
+    build of torch does not ship; trained from scratch (11 M parameters, 45 MB)."""
+
+    def __init__(self, num_classes: int, widths: tuple[int, ...] = (64, 128, 256, 512)):
+        super().__init__()
+        self.conv1 = nn.Conv2d(3, widths[0], 7, 2, 3, bias=False)
+        self.bn1 = nn.BatchNorm2d(widths[0])
+        channels = widths[0]
+        for index, width in enumerate(widths, start=1):
+            stride = 1 if index == 1 else 2
+            setattr(self, f"layer{index}", nn.Sequential(_BasicBlock(channels, width, stride), _BasicBlock(width, width, 1)))
+            channels = width
+        self.fc = nn.Linear(channels, num_classes)
+        self.depth = len(widths)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        x = functional.max_pool2d(torch.relu(self.bn1(self.conv1(x))), 3, 2, 1)
+        for index in range(1, self.depth + 1):
+            x = getattr(self, f"layer{index}")(x)
+        return self.fc(x.mean(dim=(2, 3)))
+
+
+#: Channel widths each classifier architecture is built with.
+CLASSIFIER_WIDTHS = {ARCHITECTURE: WIDTHS, RESNET18_ARCHITECTURE: (64, 128, 256, 512)}
+
+
+def classifier_network(architecture: str, num_classes: int, widths: tuple[int, ...] | None = None) -> nn.Module:
+    """A fresh classifier of ``architecture`` (a :data:`CLASSIFIER_ARCHITECTURES` value)."""
+    network = ResNet18 if architecture == RESNET18_ARCHITECTURE else CompactResNet
+    return network(num_classes, widths or CLASSIFIER_WIDTHS[architecture])
+
+
 def _conv_block(in_channels: int, out_channels: int) -> nn.Sequential:
     return nn.Sequential(
         nn.Conv2d(in_channels, out_channels, 3, 1, 1, bias=False), nn.BatchNorm2d(out_channels), nn.ReLU(inplace=True),
@@ -93,8 +148,10 @@ class TinyUNet(nn.Module):
         return self.head(x)
 
 
-def save_checkpoint(path: Path, model: nn.Module, task: str, family: str, classes: list[str], reference_input: np.ndarray, extra: dict[str, Any] | None = None) -> None:
-    """Write a checkpoint (layout: :mod:`frontal3d.learned`) with ``reference_input``'s output as the reference."""
+def save_checkpoint(path: Path, model: nn.Module, task: str, family: str, classes: list[str], reference_input: np.ndarray,
+                    extra: dict[str, Any] | None = None, architecture: str = ARCHITECTURE) -> None:
+    """Write a checkpoint (layout: :mod:`frontal3d.learned`) with ``reference_input``'s output as the reference.
+    ``architecture`` is the classifier's (dense tasks have one)."""
     dense = task in DENSE_TASKS
     if dense:
         reference = torch.from_numpy(dense_probabilities(model, reference_input[None])[0].astype(np.float32))
@@ -108,8 +165,8 @@ def save_checkpoint(path: Path, model: nn.Module, task: str, family: str, classe
         "family": family,
         "classes": list(classes),
         "input_size": int(reference_input.shape[0]),
-        "architecture": ARCHITECTURES[task],
-        "widths": list(DENSE_WIDTHS if dense else WIDTHS),
+        "architecture": DENSE_ARCHITECTURE if dense else architecture,
+        "widths": list(DENSE_WIDTHS if dense else CLASSIFIER_WIDTHS[architecture]),
         "state_dict": model.state_dict(),
         "reference_input": torch.from_numpy(np.ascontiguousarray(reference_input)),
         "reference_probabilities": reference,
@@ -214,10 +271,10 @@ def _crop(data_dir: Path, name: str, size: int) -> np.ndarray:
 
 
 def train(dataset: Dataset, task: str, out: Path, epochs: int = 8, seed: int = 0,
-          log: Callable[[str], None] = print, show_progress: bool | None = None) -> TrainingResult:
+          log: Callable[[str], None] = print, show_progress: bool | None = None, architecture: str = ARCHITECTURE) -> TrainingResult:
     """Train the task's network on ``dataset``, print the held-out score per epoch, write the checkpoint to ``out``.
 
-    Classifiers (:class:`CompactResNet`) report accuracy; dense tasks (:class:`TinyUNet`)
+    Classifiers (:class:`CompactResNet`, or :class:`ResNet18` with ``architecture``) report accuracy; dense tasks (:class:`TinyUNet`)
     report IoU pooled over the held-out pixels: the object's for the segmenter, the mean
     over regions for the region model.
     """
@@ -233,7 +290,7 @@ def train(dataset: Dataset, task: str, out: Path, epochs: int = 8, seed: int = 0
         loss_of = nn.CrossEntropyLoss(ignore_index=-1)
         metric = "IoU" if task == "segmenter" else "mean region IoU"
     else:
-        model = CompactResNet(len(dataset.classes))
+        model = classifier_network(architecture, len(dataset.classes))
         loss_of = nn.CrossEntropyLoss(label_smoothing=0.05)
         metric = "accuracy"
     batch_size = DENSE_BATCH_SIZE if dense else BATCH_SIZE
@@ -261,7 +318,7 @@ def train(dataset: Dataset, task: str, out: Path, epochs: int = 8, seed: int = 0
         log(f"epoch {epoch}/{epochs}: held-out {metric} {result.held_out_accuracy[-1]:.3f} ({len(held)} samples)")
     training = {"epochs": epochs, "seed": seed, "train_samples": len(kept), "held_out_samples": len(held),
                 f"held_out_{metric.replace(' ', '_')}": result.held_out_accuracy[-1] if result.held_out_accuracy else None}
-    save_checkpoint(out, model, task, dataset.family, dataset.classes, dataset.crops[held[0]], training)
+    save_checkpoint(out, model, task, dataset.family, dataset.classes, dataset.crops[held[0]], training, architecture)
     return result
 
 

@@ -137,6 +137,28 @@ def test_trained_checkpoint_loads_and_reproduces_its_stored_prediction(trained):
     assert load_classifier(trained["subtype"]).predict(image, mask) == (label, confidence, runner_up, runner_up_confidence)
 
 
+def test_the_subtype_trains_as_a_resnet18_that_loads_and_replays(trained, capsys):
+    """`train --arch resnet18` builds torchvision's ResNet-18 (its parameter count and module
+    names), and the checkpoint loads, replays its reference and classifies like the compact one."""
+    from frontal3d.train import ResNet18
+
+    assert sum(p.numel() for p in ResNet18(1000).parameters()) == 11_689_512  # torchvision's resnet18()
+    names = set(ResNet18(3).state_dict())
+    assert {"conv1.weight", "bn1.running_mean", "layer1.1.conv2.weight", "layer2.0.downsample.0.weight", "fc.bias"} <= names
+    assert not any(name.startswith("layer1.0.downsample") for name in names)
+
+    out = trained["root"] / "subtype_resnet18.pt"
+    assert main(["train", "subtype", "--data", str(trained["data"]), "-o", str(out), "--epochs", "1", "--arch", "resnet18"]) == 0
+    assert "held-out accuracy" in capsys.readouterr().out
+    assert torch.load(out, weights_only=True)["architecture"] == "resnet18_v1"
+    model = load_classifier(out, "subtype", Plugins().family("car"))
+    image, mask = _sample(trained["data"], 0)
+    label, confidence, runner_up, _ = model.predict(image, mask)
+    assert label in model.classes and runner_up in model.classes and 1.0 >= confidence > 0.0
+    assert main(["train", "segmenter", "--data", str(trained["data"]), "-o", str(out), "--arch", "resnet18"]) != 0
+    assert "--arch is for the frontal and subtype classifiers" in capsys.readouterr().err
+
+
 def _one_line_config_error(path, task="subtype", family="car") -> str:
     with pytest.raises(ConfigError) as info:
         load_classifier(path, task, Plugins().family(family))
