@@ -1,7 +1,7 @@
 """Training the learned models on data made by ``frontal3d synth``.
 
-The frontal gate and subtype classifier (:class:`CompactResNet`, loaded by
-:mod:`frontal3d.learned`) and the dense object and region segmenters (:class:`TinyUNet`,
+The frontal gate and subtype classifier (:class:`CompactResNet`, or :class:`ResNet18` on
+request, loaded by :mod:`frontal3d.learned`) and the dense object and region segmenters (:class:`TinyUNet`,
 loaded by :mod:`frontal3d.learned_dense`). CPU-only and small on purpose: the inputs are
 computed once and held in memory, and a fixed share of the samples is held out (never
 trained on) to report accuracy or IoU after every epoch.
