@@ -69,6 +69,10 @@ class CompactResNet(nn.Module):
         return self.head(self.stages(self.stem(x)).mean(dim=(2, 3)))
 
 
+#: Channel widths of ResNet-18's four stages.
+RESNET18_WIDTHS = (64, 128, 256, 512)
+
+
 class _BasicBlock(nn.Module):
     """torchvision's ResNet basic block, with its module names (conv1, bn1, conv2, bn2, downsample)."""
 
@@ -92,7 +96,7 @@ class ResNet18(nn.Module):
     because the torchvision wheels built for torch 2.13 need CUDA's libraries, which the CPU
     build of torch does not ship; trained from scratch (11 M parameters, 45 MB)."""
 
-    def __init__(self, num_classes: int, widths: tuple[int, ...] = (64, 128, 256, 512)):
+    def __init__(self, num_classes: int, widths: tuple[int, ...] = RESNET18_WIDTHS):
         super().__init__()
         self.conv1 = nn.Conv2d(3, widths[0], 7, 2, 3, bias=False)
         self.bn1 = nn.BatchNorm2d(widths[0])
@@ -112,7 +116,7 @@ class ResNet18(nn.Module):
 
 
 #: Channel widths each classifier architecture is built with.
-CLASSIFIER_WIDTHS = {ARCHITECTURE: WIDTHS, RESNET18_ARCHITECTURE: (64, 128, 256, 512)}
+CLASSIFIER_WIDTHS = {ARCHITECTURE: WIDTHS, RESNET18_ARCHITECTURE: RESNET18_WIDTHS}
 
 
 def classifier_network(architecture: str, num_classes: int, widths: tuple[int, ...] | None = None) -> nn.Module:
