@@ -533,7 +533,8 @@ def segment_object(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dic
         objects[0] = _refine_with_templates(plugins, rgb, objects[0], occluders, fam, settings, subtype, report)
     if settings["mirror_repair"] and segmented_here and occluders is None:
         # Not a mask the user gave, nor one with people in front: those may be rightly lopsided.
-        network = learned_dense.configured_segmenter(settings, fam, rgb[..., :3])
+        # The network's doubt is asked only where it may cut a piece of the object's own colour.
+        network = learned_dense.configured_segmenter(settings, fam, rgb[..., :3]) if settings["mirror_repair_cuts_own_colour"] else None
         probability = network.object_probability_either_tone(rgb) if network is not None else None
         objects = [_mirror_repaired(rgb, mask, probability, index, report) for index, mask in enumerate(objects)]
     return Segmentation(objects, occluders, found, user_occluders)

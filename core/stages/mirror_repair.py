@@ -21,7 +21,10 @@ The line is found on the outline (:func:`frontal3d.stages.mirror_symmetry.fit_mi
 based line towards it, but the object's outline still matches its mirror image. Thin
 asymmetric slivers (a few degrees of roll, a fin seen slightly from the side) are left
 alone: only pieces that hold a disc of :data:`PIECE_RADIUS` count. Families switch it on
-with the ``mirror_repair`` setting (airplanes).
+with the ``mirror_repair`` setting (airplanes, guitars). A guitar's own parts break its
+symmetry (a bass's long horn, a single cutaway), so guitars turn off the cut of doubted
+object-coloured pieces (``mirror_repair_cuts_own_colour``: the pipeline then passes no
+``probability``) and keep only the cut of pieces in a third colour.
 """
 
 from __future__ import annotations
@@ -63,6 +66,9 @@ CLEAR_GAP = 3.0
 #: A piece is object-coloured when its colours lie nearer the object's than this share of their
 #: distance to the background's: a blob of a third colour, about as far from both, is not.
 OBJECT_NEARER = 0.75
+#: A piece this near the object's colours (CIELAB, median) is object-coloured whatever lies
+#: around the mask: the ring read as background may hold a part of the object the mask lost.
+OWN_COLOUR = 3.0
 #: An object-coloured piece may be a part of the object that a turn moved off its mirror image
 #: (a rolled plane's fin or engine): it is cut only where the learned segmenter's mean p(object)
 #: is below this too.
@@ -146,7 +152,8 @@ def _pieces_to_change(image: np.ndarray, mask: np.ndarray, probability: np.ndarr
         meeting = piece & (cv2.dilate((mask & ~piece).astype(np.uint8), disc(1)) > 0)
         # A piece apart from the rest is set off from it by background already.
         along_edge = not meeting.any() or float(np.median(gradient[meeting])) >= EDGE_RATIO * inside_gradient
-        object_coloured = float(np.median(to_object[piece])) < OBJECT_NEARER * float(np.median(to_background[piece]))
+        piece_to_object = float(np.median(to_object[piece]))
+        object_coloured = piece_to_object < OWN_COLOUR or piece_to_object < OBJECT_NEARER * float(np.median(to_background[piece]))
         doubted = probability is not None and float(probability[piece].mean()) < DOUBTED_P
         if (not on_line and along_edge and beyond_background < beyond_object
                 and (not object_coloured or (doubted and beyond_object - beyond_background >= CLEAR_GAP))):
