@@ -30,6 +30,7 @@ CORE_FAMILY_SETTINGS: dict[str, Any] = {
     "shape_prior": False,  # cut GrabCut's mask again with the templates placed on it (2-3 s; helps cluttered backgrounds)
     "mirror_repair": False,  # cut pieces of the segmented mask that break the object's mirror symmetry against background, add back a missing mirror half (canonical views symmetric about a line)
     "mirror_repair_cuts_own_colour": True,  # the mirror repair also cuts an object-coloured piece where the learned segmenter doubts it (a blob of a plane's own grey); false where the object's own parts break its symmetry (a guitar's horns)
+    "mirror_repair_paired_colours": False,  # the mirror repair reads the object's colours only where both sides of the line look alike (a flat face lit evenly; not a plane's dihedral wings)
     "turned_margin": 1.0,  # frontal gate: reject when a template turned 30-90 deg fits the outline better by more than this IoU; 1 = off
     "mirror_margin": 1.0,  # frontal gate: reject when the outline is less mirror-symmetric about its axis than the template's by more than this IoU; 1 = off
     "contact_pair_margin": 1.0,  # frontal gate: reject when both axles' ground contacts split into pairs further apart than this share of the length; 1 = off

@@ -536,14 +536,16 @@ def segment_object(plugins: Plugins, rgb: np.ndarray, fam: Family, settings: dic
         # The network's doubt is asked only where it may cut a piece of the object's own colour.
         network = learned_dense.configured_segmenter(settings, fam, rgb[..., :3]) if settings["mirror_repair_cuts_own_colour"] else None
         probability = network.object_probability_either_tone(rgb) if network is not None else None
-        objects = [_mirror_repaired(rgb, mask, probability, index, report) for index, mask in enumerate(objects)]
+        paired = settings["mirror_repair_paired_colours"]
+        objects = [_mirror_repaired(rgb, mask, probability, paired, index, report) for index, mask in enumerate(objects)]
     return Segmentation(objects, occluders, found, user_occluders)
 
 
-def _mirror_repaired(rgb: np.ndarray, mask: np.ndarray, probability: np.ndarray | None, index: int, report: Report) -> np.ndarray:
+def _mirror_repaired(rgb: np.ndarray, mask: np.ndarray, probability: np.ndarray | None, paired_colours: bool, index: int,
+                     report: Report) -> np.ndarray:
     """One object's mask after the mirror repair, noted in report.json when it changed anything
     (``index`` counts the objects found, largest first)."""
-    repaired, summary = mirror_repair.mirror_repaired(rgb, mask, probability)
+    repaired, summary = mirror_repair.mirror_repaired(rgb, mask, probability, paired_colours)
     if summary.get("cut_px") or summary.get("added_px"):
         report.data.setdefault("mirror_repair", []).append({"object": index} | summary)
     return repaired

@@ -66,6 +66,8 @@ CLEAR_GAP = 3.0
 #: A piece is object-coloured when its colours lie nearer the object's than this share of their
 #: distance to the background's: a blob of a third colour, about as far from both, is not.
 OBJECT_NEARER = 0.75
+#: Fewest pixels whose colours match their mirror partners' before the object's colours are read there only.
+MIN_PAIRED_PIXELS = 50
 #: A piece this near the object's colours (CIELAB, median) is object-coloured whatever lies
 #: around the mask: the ring read as background may hold a part of the object the mask lost.
 OWN_COLOUR = 3.0
@@ -75,12 +77,14 @@ OWN_COLOUR = 3.0
 DOUBTED_P = 0.5
 
 
-def mirror_repaired(image: np.ndarray, mask: np.ndarray, probability: np.ndarray | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+def mirror_repaired(image: np.ndarray, mask: np.ndarray, probability: np.ndarray | None = None,
+                    paired_colours: bool = False) -> tuple[np.ndarray, dict[str, Any]]:
     """The mask with its asymmetric pieces cut or completed (see the module docstring), and what
     was done, for report.json (pixels cut and added at full size, and the line's agreement).
 
     ``probability`` is the learned segmenter's p(object) for the image, when one is configured:
-    an object-coloured piece is cut only where the network, too, doubts it."""
+    an object-coloured piece is cut only where the network, too, doubts it. With ``paired_colours``
+    the object's colours are read only where both sides of the line look alike (:func:`_object_samples`)."""
     mask = np.asarray(mask, dtype=bool)
     if not mask.any():
         return mask, {}
@@ -95,7 +99,7 @@ def mirror_repaired(image: np.ndarray, mask: np.ndarray, probability: np.ndarray
         small_image, small_mask = np.ascontiguousarray(image[..., :3]), mask
     if not small_mask.any():
         return mask, {}
-    cut, added, agreement = _pieces_to_change(small_image, small_mask, probability)
+    cut, added, agreement = _pieces_to_change(small_image, small_mask, probability, paired_colours)
     if factor < 1.0:
         full = (mask.shape[1], mask.shape[0])
         cut = cv2.resize(cut.astype(np.uint8), full, interpolation=cv2.INTER_NEAREST) > 0
@@ -106,7 +110,8 @@ def mirror_repaired(image: np.ndarray, mask: np.ndarray, probability: np.ndarray
     return repaired, summary
 
 
-def _pieces_to_change(image: np.ndarray, mask: np.ndarray, probability: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, float]:
+def _pieces_to_change(image: np.ndarray, mask: np.ndarray, probability: np.ndarray | None,
+                      paired_colours: bool) -> tuple[np.ndarray, np.ndarray, float]:
     """(pixels to cut, pixels to add, the line's outline agreement) on the working image."""
     nothing = np.zeros_like(mask)
     fit = fit_mirror(mask, 0.0, COARSE_TILTS, OBJECT_BENDS, outline=True)
@@ -128,7 +133,7 @@ def _pieces_to_change(image: np.ndarray, mask: np.ndarray, probability: np.ndarr
     around = (cv2.dilate(mask.astype(np.uint8), disc(3 * radius)) > 0) & ~(cv2.dilate((mask | mirrored).astype(np.uint8), disc(2)) > 0)
     if not symmetric.any() or not around.any():
         return nothing, nothing, fit.agreement
-    object_samples = cv2.erode(symmetric.astype(np.uint8), disc(1)) > 0
+    object_samples = _object_samples(symmetric, colour_gap, paired_colours)
     to_object = distance_to_colours(lab, lab[object_samples if object_samples.any() else symmetric])
     to_background = distance_to_colours(lab, lab[around])
     gradient = _gradient(lab)
@@ -159,6 +164,23 @@ def _pieces_to_change(image: np.ndarray, mask: np.ndarray, probability: np.ndarr
                 and (not object_coloured or (doubted and beyond_object - beyond_background >= CLEAR_GAP))):
             cut |= piece
     return cut, added, fit.agreement
+
+
+def _object_samples(symmetric: np.ndarray, colour_gap: np.ndarray, paired_colours: bool) -> np.ndarray:
+    """Where the object's colours are read: its symmetric part, one pixel in; with ``paired_colours``
+    only where a pixel's colour matches its mirror partner's too.
+
+    Blobs behind the object on both sides pass for symmetric (a violet blob left of a bass's
+    neck facing a cyan one on the right), and read there their colours count as the object's
+    own, so their pieces escape the cut. A flat face lit evenly (a guitar's) looks alike on
+    both sides, so pairs that differ are not the object; a plane's dihedral wings catch the
+    light differently and lose their own colours that way (families choose it:
+    ``mirror_repair_paired_colours``)."""
+    inside = cv2.erode(symmetric.astype(np.uint8), disc(1)) > 0
+    if not paired_colours:
+        return inside
+    paired = inside & (colour_gap < SAME_COLOUR)
+    return paired if np.count_nonzero(paired) >= MIN_PAIRED_PIXELS else inside
 
 
 def _gradient(lab: np.ndarray) -> np.ndarray:
