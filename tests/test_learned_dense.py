@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 import subprocess
 import sys
 from pathlib import Path
@@ -26,6 +25,8 @@ from frontal3d.stages.regions import segment_regions
 from frontal3d.stages.segment import grabcut_segment
 from frontal3d.synth import render_sample
 
+from markers import needs_mediapipe
+
 SHIPPED = Path(__file__).resolve().parents[1] / "families" / "car" / "weights" / "segmenter.pt"
 EXAMPLE_JPG = Path(__file__).resolve().parents[1] / "examples" / "sportscar.jpg"
 EXAMPLE_PNG = EXAMPLE_JPG.with_suffix(".png")
@@ -33,7 +34,6 @@ AIRPLANE_SHIPPED = SHIPPED.parents[2] / "airplane" / "weights" / "segmenter.pt"
 PLANE_PNG = EXAMPLE_JPG.with_name("private_plane.png")
 GUITAR_SHIPPED = SHIPPED.parents[2] / "guitar" / "weights" / "segmenter.pt"
 GUITAR_PEOPLE_SHIPPED = GUITAR_SHIPPED.with_name("segmenter_people.pt")
-needs_mediapipe = pytest.mark.skipif(importlib.util.find_spec("mediapipe") is None, reason="mediapipe is not installed (scripts/setup.sh installs it)")
 
 
 @pytest.fixture(scope="module")

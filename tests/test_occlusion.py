@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 import subprocess
 import sys
 import time
@@ -23,9 +22,10 @@ from frontal3d.stages.classify import SubtypeClassifier
 from frontal3d.stages.occlusion import (VisibleAgreementContext, find_occluders, hidden_by, in_front, occluded_at_full_resolution,
                                        rebuild_silhouette, shown_in_front)
 
+from markers import needs_mediapipe
+
 SKIN = (224, 172, 135)
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-needs_mediapipe = pytest.mark.skipif(importlib.util.find_spec("mediapipe") is None, reason="mediapipe is not installed (scripts/setup.sh installs it)")
 
 
 def _ellipse(shape: tuple[int, int], centre: tuple[int, int], axes: tuple[int, int], angle: float = 0.0) -> np.ndarray:
