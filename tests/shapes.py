@@ -1,4 +1,4 @@
-"""Small generated meshes shared by several test modules."""
+"""Small generated meshes, and renders of the shipped templates, shared by several test modules."""
 
 from __future__ import annotations
 
@@ -84,3 +84,14 @@ def strip_beside(mask: np.ndarray, width: int = 5) -> np.ndarray:
     columns = np.flatnonzero(mask.any(axis=0))
     beside[:, columns[-1] + 1 : columns[-1] + 1 + width] = True
     return beside
+
+
+def shipped_guitar_render(subtype: str) -> tuple[np.ndarray, np.ndarray]:
+    """The shipped guitar template of ``subtype`` rendered from the front (RGBA, 384 px) and its mask."""
+    from frontal3d.photo_render import frontal_camera, render_frontal
+    from frontal3d.plugins import Plugins
+
+    plugins = Plugins()
+    mesh = plugins.hook.frontal3d_template(family=plugins.family("guitar"), subtype=subtype, settings=plugins.settings("guitar")).mesh
+    rgba = render_frontal(mesh, frontal_camera(mesh, 384, 0.8))
+    return rgba, rgba[..., 3] > 127

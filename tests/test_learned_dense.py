@@ -26,6 +26,7 @@ from frontal3d.stages.segment import grabcut_segment
 from frontal3d.synth import render_sample
 
 from markers import needs_mediapipe
+from shapes import shipped_guitar_render
 
 SHIPPED = Path(__file__).resolve().parents[1] / "families" / "car" / "weights" / "segmenter.pt"
 EXAMPLE_JPG = Path(__file__).resolve().parents[1] / "examples" / "sportscar.jpg"
@@ -330,7 +331,7 @@ def test_shipped_guitar_chain_uses_the_people_network_when_a_person_is_seen():
     plugins = Plugins()
     family = plugins.family("guitar")
     settings = plugins.settings("guitar")
-    guitar_rgba, _ = _guitar_render(plugins, family, "electric")
+    guitar_rgba, _ = shipped_guitar_render("electric")
     photo = composite_photo(guitar_rgba, "blobs", np.random.default_rng(0))
     portrait = cv2.cvtColor(cv2.imread(str(Path(skimage.__file__).parent / "data" / "astronaut.png")), cv2.COLOR_BGR2RGB)
     with_person = np.concatenate([photo, cv2.resize(portrait, (photo.shape[0], photo.shape[0]))], axis=1)
@@ -352,7 +353,7 @@ def test_shipped_guitar_chain_finds_generated_guitars_over_clutter():
     people_network = load_dense(GUITAR_PEOPLE_SHIPPED, "segmenter", family)
     chained, people = [], []
     for subtype in ("electric", "classical"):
-        rgba, truth = _guitar_render(plugins, family, subtype)
+        rgba, truth = shipped_guitar_render(subtype)
         for seed in range(8):
             photo = composite_photo(rgba, "blobs", np.random.default_rng(seed))
             chained.append(_iou(plugins.hook.frontal3d_segment(image=photo, family=family, settings=settings, hints={"mask": None}), truth))
@@ -360,15 +361,6 @@ def test_shipped_guitar_chain_finds_generated_guitars_over_clutter():
     assert np.mean(chained) > 0.87
     gains = np.array(chained) - np.array(people)
     assert (gains > 0.1).sum() >= 4 and gains.min() > -0.02
-
-
-def _guitar_render(plugins: Plugins, family, subtype: str) -> tuple[np.ndarray, np.ndarray]:
-    """The guitar template of ``subtype`` rendered from the front (RGBA, 384 px) and its mask."""
-    from frontal3d.photo_render import frontal_camera, render_frontal
-
-    mesh = plugins.hook.frontal3d_template(family=family, subtype=subtype, settings=plugins.settings("guitar")).mesh
-    rgba = render_frontal(mesh, frontal_camera(mesh, 384, 0.8))
-    return rgba, rgba[..., 3] > 127
 
 
 def _shipped_mask_over_blobs(weights: Path, family, example: Path, seed: int, pale: bool = False) -> tuple[np.ndarray | None, np.ndarray]:

@@ -7,7 +7,6 @@ import cv2
 import numpy as np
 import pytest
 
-from frontal3d import photo_render
 from frontal3d.eval_gate import turned
 from frontal3d.eval_masks import composite_photo, mask_iou
 from frontal3d.evaluate import render_frontal
@@ -17,7 +16,7 @@ from frontal3d.plugins import Plugins
 from frontal3d.stages.mirror_repair import mirror_repaired
 from frontal3d.synth import linear_gradient
 
-from shapes import toy_airliner
+from shapes import shipped_guitar_render, toy_airliner
 
 SIZE = 320
 #: An ellipse behind the plane's right wing, touching it.
@@ -116,18 +115,9 @@ def test_a_doubted_piece_apart_from_the_plane_is_cut(plane):
     assert mask_iou(repaired, truth) > 0.99
 
 
-def _guitar_render(subtype: str) -> tuple[np.ndarray, np.ndarray]:
-    """The shipped guitar template of ``subtype`` rendered from the front (RGBA, 384 px) and its mask."""
-    plugins = Plugins()
-    family = plugins.family("guitar")
-    mesh = plugins.hook.frontal3d_template(family=family, subtype=subtype, settings=plugins.settings("guitar")).mesh
-    rgba = photo_render.render_frontal(mesh, photo_render.frontal_camera(mesh, 384, 0.8))
-    return rgba, rgba[..., 3] > 127
-
-
 def test_a_blob_stuck_to_a_guitars_waist_is_cut():
     # A violet blob behind the waist on one side only: its mirror image is background.
-    rgba, truth = _guitar_render("classical")
+    rgba, truth = shipped_guitar_render("classical")
     waist = np.flatnonzero(truth[262])
     centre, axes = (int(waist.min()) - 15, 262), (35, 22)
     blob = np.zeros(truth.shape, np.uint8)
@@ -143,7 +133,7 @@ def test_a_blob_stuck_to_a_guitars_waist_is_cut():
 
 def _guitar_with_long_horn() -> np.ndarray:
     """The electric template (RGBA) with a bass's long upper horn on the left, in the body's own colour."""
-    rgba, _ = _guitar_render("electric")
+    rgba, _ = shipped_guitar_render("electric")
     horn = np.zeros(rgba.shape[:2], np.uint8)
     cv2.ellipse(horn, (150, 200), (9, 30), -15, 0, 360, 1, -1)
     rgba[horn > 0, :3] = rgba[..., :3][rgba[..., 3] > 127].mean(axis=0).astype(np.uint8)
