@@ -37,9 +37,12 @@ def _photo(plane: tuple[np.ndarray, np.ndarray], blob_colour: tuple[float, float
     cv2.ellipse(blob, color=1, thickness=-1, **BLOB)
     if blob_colour is not None:
         cv2.ellipse(background, color=blob_colour, thickness=-1, **BLOB)
-    photo = composite(np.dstack([image, mask.astype(np.uint8) * 255]), background).astype(np.float32)
-    photo += np.random.default_rng(0).normal(0, 3, photo.shape)
-    return np.clip(photo, 0, 255).astype(np.uint8), (blob > 0) & ~mask
+    return _with_sensor_noise(composite(np.dstack([image, mask.astype(np.uint8) * 255]), background)), (blob > 0) & ~mask
+
+
+def _with_sensor_noise(photo: np.ndarray) -> np.ndarray:
+    """The composite with a camera's sensor noise (sigma 3, seed 0)."""
+    return np.clip(photo + np.random.default_rng(0).normal(0, 3, photo.shape), 0, 255).astype(np.uint8)
 
 
 def test_a_blob_of_another_colour_stuck_to_a_wing_is_cut(plane):
@@ -124,9 +127,9 @@ def test_a_blob_stuck_to_a_guitars_waist_is_cut():
     cv2.ellipse(blob, centre, axes, 0, 0, 360, 1, -1)
     background = linear_gradient(384, np.array([190.0, 150.0, 170.0]), np.array([150.0, 90.0, 140.0]), np.array([0.6, 0.8]))
     cv2.ellipse(background, centre, axes, 0, 0, 360, (120.0, 80.0, 190.0), -1)
-    photo = composite(rgba, background) + np.random.default_rng(0).normal(0, 3, background.shape)
+    photo = _with_sensor_noise(composite(rgba, background))
     found = truth | (blob > 0)
-    repaired, summary = mirror_repaired(np.clip(photo, 0, 255).astype(np.uint8), found)
+    repaired, summary = mirror_repaired(photo, found)
     assert mask_iou(found, truth) < 0.95
     assert mask_iou(repaired, truth) > 0.99 and summary["added_px"] == 0
 
@@ -153,7 +156,7 @@ def test_a_blob_where_a_long_horns_mirror_image_falls_is_not_read_as_the_guitars
     centre, axes = (mirror_of_horn + 12, 215), (24, 36)
     cv2.ellipse(background, centre, axes, 0, 0, 360, (235.0, 225.0, 215.0), -1)
     cv2.ellipse(blob, centre, axes, 0, 0, 360, 1, -1)
-    photo = np.clip(composite(rgba, background) + np.random.default_rng(0).normal(0, 3, background.shape), 0, 255).astype(np.uint8)
+    photo = _with_sensor_noise(composite(rgba, background))
     found = truth | (blob > 0)
     kept, _ = mirror_repaired(photo, found)
     paired, _ = mirror_repaired(photo, found, paired_colours=True)
