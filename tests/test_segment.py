@@ -162,12 +162,14 @@ def test_grabcut_returns_none_for_an_image_without_an_object():
     assert grabcut_segment(plain) is None
 
 
-def test_alpha_channel_is_the_mask_unless_fully_opaque():
+def test_alpha_channel_is_the_mask_unless_uniform():
     rgba = np.zeros((40, 50, 4), np.uint8)
     rgba[10:30, 5:20, 3] = 255
     mask = mask_from_alpha(rgba)
     assert mask is not None and mask.sum() == 20 * 15 and mask[15, 10] and not mask[0, 0]
     rgba[..., 3] = 255
+    assert mask_from_alpha(rgba) is None
+    rgba[..., 3] = 0  # a wrongly exported, wholly transparent PNG: its colours are still the photo
     assert mask_from_alpha(rgba) is None
     assert mask_from_alpha(rgba[..., :3]) is None
 

@@ -143,7 +143,8 @@ FACE_RUN_PIXELS = 3
 
 
 def mask_from_alpha(image: np.ndarray) -> np.ndarray | None:
-    """The alpha channel as the mask, or None when there is none or it is fully opaque."""
+    """The alpha channel as the mask, or None when there is none or it is uniform (fully opaque or
+    fully transparent: it outlines nothing, and the segmenters look at the colours instead)."""
     if image.ndim != 3 or image.shape[2] != 4:
         return None
     alpha = image[..., 3]
