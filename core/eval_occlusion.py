@@ -315,7 +315,8 @@ def run_occlusion_evaluation(family: str, meshes_dir: Path, renders_dir: Path, k
     and its clean render, is segmented as ``reconstruct`` segments a photo (what a user with a
     guitarist's photo and no mask gets). Writes ``composites.csv`` (one row per composite),
     ``summary.csv`` and the composites themselves (``images/<id>_<n>.png`` and
-    ``_occluder.png``) into ``out_dir``.
+    ``_occluder.png``, and the detected run's ``_sheet.png``: see
+    :func:`~frontal3d.stages.occlusion.occlusion_sheet`) into ``out_dir``.
     """
     if kind not in ("arms", "people"):
         raise InputError(f"unknown occluders {kind!r} (arms or people)")
@@ -354,6 +355,8 @@ def _composite_row(plugins, family, mesh_id, index, composite: Composite, image,
     given = composite.occluder if kind == "arms" else None
     try:
         result = _reconstruct(plugins, family, composite.image, visible, given, settings)
+        if "occlusion_sheet" in result.maps:  # who was judged in front, and what was rebuilt
+            cv2.imwrite(str(out_dir / "images" / f"{name}_sheet.png"), result.maps["occlusion_sheet"][..., ::-1])
         row.update(_scores(result, gt, clean))
         row["subtype"], row["subtype_clean"] = _subtype(result), clean["subtype"]
         row["detected_fraction"] = result.report.get("occlusion", {}).get("occluded_fraction", 0.0)

@@ -384,10 +384,15 @@ def _reconstruct_shape_and_texture(
     with report.stage("occlusion", progress):
         work_occluders = _to_working(occluders.astype(np.uint8), crop, cv2.INTER_NEAREST) > 0 if occluders is not None else np.zeros_like(work_mask)
         mirror_axis = _mirror_axis(settings, renders, similarity) if people_near.any() or work_occluders.any() else None
+        work_people = np.zeros_like(work_mask)
         if people_near.any():
-            work_occluders |= occlusion.in_front(_to_working(people_near.astype(np.uint8), crop, cv2.INTER_NEAREST) > 0, work_mask,
-                                                 aligned_template_mask, mirror_axis)
+            work_people = _to_working(people_near.astype(np.uint8), crop, cv2.INTER_NEAREST) > 0
+            work_occluders |= occlusion.in_front(work_people, work_mask, aligned_template_mask, mirror_axis)
         rebuilt = occlusion.rebuild_silhouette(work_mask, work_occluders, aligned_template_mask, k=k, mirror_axis=mirror_axis)
+        if work_occluders.any() or people_near.any():
+            maps.update(seen_object_mask=work_mask, people=work_people, occluders=work_occluders,
+                        occlusion_sheet=occlusion.occlusion_sheet(work_rgb, work_mask, work_people, work_occluders,
+                                                                  aligned_template_mask, rebuilt.mask))
         work_mask, occluded = rebuilt.mask, rebuilt.occluded
         report.data["occlusion"] = rebuilt.summary()
         if settings["fill_holes"] and _found_by_segmenters(report):

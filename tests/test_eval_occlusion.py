@@ -219,7 +219,9 @@ def test_with_segment_no_object_mask_is_given(tmp_path, monkeypatch, segment):
 
     def fake_reconstruct(plugins, family, image, mask, occluder, settings):
         given_masks.append(mask)
-        return SimpleNamespace(report={}, mesh=None, textured=SimpleNamespace(atlas=None, front_synthesized=None, front_shown=np.ones((2, 2), bool)))
+        sheet = {"occlusion_sheet": np.zeros((4, 12, 3), np.uint8)} if occluder is not None else {}
+        return SimpleNamespace(report={}, mesh=None, maps=sheet,
+                               textured=SimpleNamespace(atlas=None, front_synthesized=None, front_shown=np.ones((2, 2), bool)))
 
     monkeypatch.setattr(eval_occlusion, "_reconstruct", fake_reconstruct)
     monkeypatch.setattr(eval_occlusion, "evaluate_pair", lambda mesh, gt: dict.fromkeys(eval_occlusion.METRIC_KEYS, 0.5))
@@ -227,6 +229,7 @@ def test_with_segment_no_object_mask_is_given(tmp_path, monkeypatch, segment):
     rows = eval_occlusion.run_occlusion_evaluation("guitar", tmp_path, tmp_path, "arms", None, tmp_path / "out", per_object=2,
                                                    progress=False, segment=segment)
     assert len(rows) == 2 and len(given_masks) == 3  # the clean render, then each composite
+    assert sorted(p.name for p in (tmp_path / "out" / "images").glob("*_sheet.png")) == ["g0_0_sheet.png", "g0_1_sheet.png"]
     if segment:
         assert all(mask is None for mask in given_masks)
     else:

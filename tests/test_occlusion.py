@@ -168,6 +168,18 @@ def test_the_pipeline_rebuilds_a_car_behind_a_painted_arm():
     textured = result.textured
     assert np.count_nonzero(occluder_texels(textured.atlas, composite.image, image[..., :3], composite.occluder, car, textured.front_synthesized)) == 0
 
+    # -v's picture of the step (the paper's Figs. 5-6): the arm tinted red over the photo, and
+    # the rebuilt roof red in the third panel, where nothing was seen.
+    sheet, seen, rebuilt = result.maps["occlusion_sheet"], result.maps["seen_object_mask"], result.maps["object_mask"]
+    height, width = seen.shape
+    assert sheet.shape == (height, 3 * width, 3)
+    who, rebuilt_panel = sheet[:, :width].astype(int), sheet[:, 2 * width :].astype(int)
+    reddish = (who[..., 0] > who[..., 1] + 40) & (who[..., 0] > who[..., 2] + 40)
+    assert reddish[result.maps["occluders"]].mean() > 0.9
+    red = (rebuilt_panel[..., 0] > 200) & (rebuilt_panel[..., 1] < 80)
+    assert red.any() and not (red & ~(rebuilt & ~seen)).any()
+    assert red.sum() > 0.9 * (rebuilt & ~seen).sum()  # all but the template outline drawn over it
+
 
 def test_at_full_resolution_every_occluder_pixel_on_the_rebuilt_mask_is_inpainted():
     """A finger one pixel wide and the arm's edge vanish on a coarser grid: the full-resolution
@@ -307,6 +319,7 @@ def test_an_empty_occluder_mask_changes_nothing():
     assert with_empty.report["occlusion"]["occluded_fraction"] == 0.0
     assert with_empty.report["alignment"] == plain.report["alignment"] | {"seconds": with_empty.report["alignment"]["seconds"]}
     assert np.array_equal(with_empty.mesh.vertices, plain.mesh.vertices)
+    assert "occlusion_sheet" not in with_empty.maps  # -v pictures the step only when something stands in front
 
 
 def test_a_found_hand_is_completed_by_the_persons_pixels_off_the_object():
