@@ -99,7 +99,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--out", type=Path, default=Path("frontal3d-out"), help="output folder (default: ./frontal3d-out)")
     _add_set_option(p, "working_resolution=400")
     p.add_argument("-v", "--verbose", action="store_true", help="log each stage and write intermediate maps to OUTDIR/<stem>/debug/ (with occluders or people "
-                   "touching the object, occlusion_sheet.png pictures who stands in front and what was rebuilt); "
+                   "touching the object, occlusion_sheet.png pictures who stands in front, what was rebuilt and the rebuilt regions); "
                    "for a photo the classifier chain turns down, the outline it judged to OUTDIR/<stem>_turned_down.png")
     p.set_defaults(run=_cmd_reconstruct)
 

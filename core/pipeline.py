@@ -31,7 +31,7 @@ from frontal3d.masks import pieces_touching, within
 from frontal3d.plugins import Plugins
 from frontal3d.render import TemplateRenders, load_or_render
 from frontal3d.stages import align, boundary, classify, mesh, mirror_repair, occlusion, segment, texture, warp
-from frontal3d.stages.export import export_all
+from frontal3d.stages.export import debug_picture, export_all
 from frontal3d.stages.mirror_symmetry import template_mirror
 
 log = logging.getLogger("frontal3d")
@@ -389,10 +389,9 @@ def _reconstruct_shape_and_texture(
             work_people = _to_working(people_near.astype(np.uint8), crop, cv2.INTER_NEAREST) > 0
             work_occluders |= occlusion.in_front(work_people, work_mask, aligned_template_mask, mirror_axis)
         rebuilt = occlusion.rebuild_silhouette(work_mask, work_occluders, aligned_template_mask, k=k, mirror_axis=mirror_axis)
-        if work_occluders.any() or people_near.any():
-            maps.update(seen_object_mask=work_mask, people=work_people, occluders=work_occluders,
-                        occlusion_sheet=occlusion.occlusion_sheet(work_rgb, work_mask, work_people, work_occluders,
-                                                                  aligned_template_mask, rebuilt.mask))
+        seen_mask, pictured = work_mask, work_occluders.any() or people_near.any()
+        if pictured:
+            maps.update(seen_object_mask=seen_mask, people=work_people, occluders=work_occluders)
         work_mask, occluded = rebuilt.mask, rebuilt.occluded
         report.data["occlusion"] = rebuilt.summary()
         if settings["fill_holes"] and _found_by_segmenters(report):
@@ -411,6 +410,9 @@ def _reconstruct_shape_and_texture(
             regions = transferred
         regions = occlusion.rebuild_regions(regions, work_mask, occluded, len(renders.region_names))
         maps["regions"] = regions
+        if pictured:
+            maps["occlusion_sheet"] = occlusion.occlusion_sheet(work_rgb, seen_mask, work_people, work_occluders, aligned_template_mask,
+                                                                work_mask, debug_picture(regions), occluded)
 
     with report.stage("boundary", progress):
         # Both outlines on the working grid, pieces joined the same way on both sides.

@@ -168,17 +168,20 @@ def test_the_pipeline_rebuilds_a_car_behind_a_painted_arm():
     textured = result.textured
     assert np.count_nonzero(occluder_texels(textured.atlas, composite.image, image[..., :3], composite.occluder, car, textured.front_synthesized)) == 0
 
-    # -v's picture of the step (the paper's Figs. 5-6): the arm tinted red over the photo, and
-    # the rebuilt roof red in the third panel, where nothing was seen.
+    # -v's picture of the step (the paper's Figs. 5-7): the arm tinted red over the photo, the
+    # rebuilt roof red in the third panel, where nothing was seen, and paled in the region map.
     sheet, seen, rebuilt = result.maps["occlusion_sheet"], result.maps["seen_object_mask"], result.maps["object_mask"]
     height, width = seen.shape
-    assert sheet.shape == (height, 3 * width, 3)
-    who, rebuilt_panel = sheet[:, :width].astype(int), sheet[:, 2 * width :].astype(int)
+    assert sheet.shape == (height, 4 * width, 3)
+    who, rebuilt_panel, regions_panel = (sheet[:, k * width : (k + 1) * width].astype(int) for k in (0, 2, 3))
     reddish = (who[..., 0] > who[..., 1] + 40) & (who[..., 0] > who[..., 2] + 40)
     assert reddish[result.maps["occluders"]].mean() > 0.9
     red = (rebuilt_panel[..., 0] > 200) & (rebuilt_panel[..., 1] < 80)
     assert red.any() and not (red & ~(rebuilt & ~seen)).any()
     assert red.sum() > 0.9 * (rebuilt & ~seen).sum()  # all but the template outline drawn over it
+    inpainted = result.maps["occlusion_mask"]
+    lightness = regions_panel.sum(axis=2)
+    assert lightness[inpainted].mean() > lightness[rebuilt & ~inpainted].mean() + 100
 
 
 def test_at_full_resolution_every_occluder_pixel_on_the_rebuilt_mask_is_inpainted():

@@ -130,7 +130,7 @@ map_Bump normal.png
 """
 
 
-def _debug_image(array: np.ndarray) -> np.ndarray:
+def debug_picture(array: np.ndarray) -> np.ndarray:
     """A viewable 8-bit picture of an intermediate map (mask, label map, depth)."""
     array = np.asarray(array)
     if array.ndim == 3 and array.dtype == np.uint8:
@@ -171,7 +171,7 @@ def _write_all(folder: Path, textured: TexturedMesh, landmarks: dict[str, np.nda
     if debug_maps:
         (folder / "debug").mkdir()
         for name, array in debug_maps.items():
-            Image.fromarray(_debug_image(array)).save(folder / "debug" / f"{name}.png")
+            Image.fromarray(debug_picture(array)).save(folder / "debug" / f"{name}.png")
         names.append("debug")
     (folder / "report.json").write_text(json.dumps(report, indent=2, default=_json_default))
     names.append("report.json")

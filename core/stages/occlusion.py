@@ -421,28 +421,32 @@ REBUILT_COLOUR = (230, 40, 40)
 
 
 def occlusion_sheet(rgb: np.ndarray, seen: np.ndarray, people: np.ndarray, occluders: np.ndarray,
-                    template: np.ndarray, rebuilt: np.ndarray) -> np.ndarray:
-    """Three labelled panels on the working grid, as the paper's Figs. 5-6, for ``-v``.
+                    template: np.ndarray, rebuilt: np.ndarray, regions_picture: np.ndarray, occluded: np.ndarray) -> np.ndarray:
+    """Four labelled panels on the working grid, as the paper's Figs. 5-7, for ``-v``.
 
     1. Who stands where: the occluders in front of the object (red: arms and hands found, the
        people judged in front, the user's mask) and the people judged behind (blue).
     2. The object as seen, the rest of the photo dimmed, with the placed template's outline.
     3. The rebuilt silhouette: seen pixels white, the pixels rebuilt under the occluders red,
        with the same template outline.
+    4. The rebuilt region map (``regions_picture``, one colour per region), the ``occluded``
+       pixels the texture inpaints from their region paled.
 
     When a person is taken for in front or behind the wrong way, or a bite is left in the
-    outline, these show which of the three steps went wrong.
+    outline, these show which step went wrong.
     """
     rgb = np.ascontiguousarray(rgb[..., :3], dtype=np.uint8)
-    seen, people, occluders, rebuilt = (np.asarray(a, dtype=bool) for a in (seen, people, occluders, rebuilt))
+    seen, people, occluders, rebuilt, occluded = (np.asarray(a, dtype=bool) for a in (seen, people, occluders, rebuilt, occluded))
     who = _tinted(_tinted(rgb, people & ~occluders, BEHIND_TINT), occluders, IN_FRONT_TINT)
     as_seen = np.where(seen[..., None], rgb, (rgb * 0.35).astype(np.uint8))
     silhouette = np.zeros_like(rgb)
     silhouette[rebuilt & seen] = 255
     silhouette[rebuilt & ~seen] = REBUILT_COLOUR
-    panels = [(who, "in front (red), behind (blue)"), (as_seen, "seen, template outline"), (silhouette, "rebuilt (red)")]
+    regions = _tinted(np.ascontiguousarray(regions_picture, dtype=np.uint8), occluded, (255, 255, 255))
+    panels = [(who, "in front (red), behind (blue)"), (as_seen, "seen, template outline"), (silhouette, "rebuilt (red)"),
+              (regions, "regions, inpainted (pale)")]
     outline, _ = cv2.findContours(np.asarray(template, np.uint8), cv2.RETR_LIST, cv2.CHAIN_APPROX_NONE)
-    for panel, label in panels[1:]:
+    for panel, _label in panels[1:3]:
         cv2.drawContours(panel, outline, -1, TEMPLATE_OUTLINE, 1)
     for panel, label in panels:
         cv2.putText(panel, label, (4, 14), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (255, 255, 255), 1, cv2.LINE_AA)
