@@ -140,6 +140,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--limit", type=int, help="only the first N meshes")
     _add_set_option(p, "frontal_threshold=0")
     p.add_argument("-o", "--out", type=Path, default=Path("frontal3d-eval"), help="output folder")
+    p.add_argument("-v", "--verbose", action="store_true", help="also write a sheet per mesh to OUT/sheets: truth and reconstruction "
+                   "as the point metrics compare them, seen from three sides")
     p.set_defaults(run=_cmd_evaluate)
 
     p = sub.add_parser("evaluate-occlusion", help="score reconstructions of renders with arms or people pasted in front (issue 7's protocols)", description="Paste occluders over each frontal render (10-30 % of the object) and reconstruct from the visible mask (with --segment, from the composite alone): arms = procedural skin-toned forearms and hands, their mask given as the occluder mask; people = people cut out of public-domain photos shipped with skimage and matplotlib, as a guitarist (body behind, an arm in front) or whole in front, no occluder mask given (each also run with its true mask for reference). Reports each metric's change against the unoccluded reconstruction, rejections and occluder pixels left in the texture (in the whole front half of the atlas, and on the model only). Writes composites.csv, summary.csv and images/.")
@@ -389,9 +391,10 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         reconstructor = slab_reconstructor(SLAB_THICKNESS_RATIO.get(args.family, 0.1))
     else:
         reconstructor = pipeline_reconstructor(plugins, args.family, **_parse_sets(args.set))
-    rows = run_evaluation(args.family, args.meshes, args.renders, reconstructor, args.out, limit=args.limit, progress=sys.stderr.isatty())
+    rows = run_evaluation(args.family, args.meshes, args.renders, reconstructor, args.out, limit=args.limit, progress=sys.stderr.isatty(),
+                          sheets=args.verbose)
     print("\n".join(summary_lines(rows)))
-    print(f"wrote {args.out}/metrics.csv, summary.csv, boxplots.png")
+    print(f"wrote {args.out}/metrics.csv, summary.csv, boxplots.png" + (f" and a sheet per mesh in {args.out}/sheets" if args.verbose else ""))
     return 0
 
 

@@ -30,6 +30,7 @@ Two choices the paper leaves open, and what this module does:
   changes the figures of thin objects a lot (an airplane whose fin height is off shifts
   its whole wing plane against the bounding-box centre), :func:`evaluate_pair` also
   reports ``chamfer_l1_icp`` and ``fscore_icp``; the headline figures stay the strict ones.
+  :func:`comparison_sheet` (``evaluate -v``) pictures that frame: where a wing plane sits.
 """
 
 from __future__ import annotations
@@ -235,6 +236,49 @@ def evaluate_pair(pred: trimesh.Trimesh, gt: trimesh.Trimesh, seed: int = 0) -> 
     return {"iou": iou, "chamfer_l1": chamfer, "fscore": fscore, "chamfer_l1_icp": chamfer_icp, "fscore_icp": fscore_icp}
 
 
+# --------------------------------------------------------------------------- pictures
+
+#: Side of each view of :func:`comparison_sheet` (pixels): the point metrics' frame spans
+#: POINT_SCALE units in SHEET_VIEW * 0.9 pixels, so the F threshold (0.1) is about 3 pixels.
+SHEET_VIEW = 320
+#: The three views of :func:`comparison_sheet`: (label, axis drawn rightwards, axis drawn upwards).
+SHEET_VIEWS = (("as photographed (x, y)", 0, 1), ("from the side (z, y)", 2, 1), ("from above (x, z)", 0, 2))
+TRUTH_COLOUR = (70, 130, 255)
+PREDICTION_COLOUR = (255, 140, 0)
+
+
+def comparison_sheet(pred: trimesh.Trimesh, gt: trimesh.Trimesh, metrics: dict[str, float], n_points: int = 20_000) -> np.ndarray:
+    """RGB picture of one prediction against its truth in the strict point metrics' frame.
+
+    Each mesh is centred on its own bounding box with its longest edge POINT_SCALE long (what
+    Chamfer-L1 and F compare), sampled, and drawn from three sides: the truth blue, the
+    prediction orange, where both lie white. A wing plane at the wrong height against the
+    box centre, or a part the template lacks, shows at a glance; the numbers cannot say where.
+    """
+    clouds = [_surface_points(_scaled(mesh, POINT_SCALE), n_points, seed=0) for mesh in (gt, pred)]
+    pixels_per_unit = 0.9 * SHEET_VIEW / POINT_SCALE
+    panels = []
+    for label, right, up in SHEET_VIEWS:
+        drawn = []
+        for points in clouds:
+            image = np.zeros((SHEET_VIEW, SHEET_VIEW), np.uint8)
+            cols = np.clip(np.round(SHEET_VIEW / 2 + points[:, right] * pixels_per_unit), 0, SHEET_VIEW - 1).astype(int)
+            rows = np.clip(np.round(SHEET_VIEW / 2 - points[:, up] * pixels_per_unit), 0, SHEET_VIEW - 1).astype(int)
+            image[rows, cols] = 1
+            drawn.append(image > 0)
+        truth, prediction = drawn
+        panel = np.zeros((SHEET_VIEW, SHEET_VIEW, 3), np.uint8)
+        panel[truth] = TRUTH_COLOUR
+        panel[prediction] = PREDICTION_COLOUR
+        panel[truth & prediction] = 255
+        cv2.putText(panel, label, (6, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (220, 220, 220), 1, cv2.LINE_AA)
+        panels.append(panel)
+    sheet = np.concatenate(panels, axis=1)
+    caption = "truth blue, reconstruction orange  " + "  ".join(f"{key} {metrics[key]:.3f}" for key in METRIC_KEYS if key in metrics)
+    cv2.putText(sheet, caption, (6, SHEET_VIEW - 8), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (220, 220, 220), 1, cv2.LINE_AA)
+    return sheet
+
+
 # --------------------------------------------------------------------------- drivers
 
 #: Side of the square frontal render made when no renders are given (pixels).
@@ -293,6 +337,7 @@ def run_evaluation(
     out_dir: Path,
     limit: int | None = None,
     progress: bool = True,
+    sheets: bool = False,
 ) -> list[dict]:
     """Reconstruct every ``*.glb`` of ``meshes_dir`` from its frontal view and score it.
 
@@ -303,7 +348,8 @@ def run_evaluation(
     placement and overall scale are free, since every metric re-centres and normalizes
     each mesh. It may name the subtype it chose in ``mesh.metadata['subtype']``.
     A reconstruction that raises is recorded as a row with its error, not a crash.
-    Writes ``metrics.csv``, ``summary.csv`` and ``boxplots.png`` into ``out_dir``.
+    Writes ``metrics.csv``, ``summary.csv`` and ``boxplots.png`` into ``out_dir``, and with
+    ``sheets`` each mesh's :func:`comparison_sheet` as ``sheets/<id>.png``.
     """
     meshes_dir, out_dir = Path(meshes_dir), Path(out_dir)
     paths = sorted(meshes_dir.glob("*.glb"))[:limit]
@@ -323,6 +369,9 @@ def run_evaluation(
             row["seconds"] = time.perf_counter() - start
             row["subtype"] = str(prediction.metadata.get("subtype", ""))
             row.update(evaluate_pair(prediction, gt))
+            if sheets:
+                (out_dir / "sheets").mkdir(exist_ok=True)
+                cv2.imwrite(str(out_dir / "sheets" / f"{path.stem}.png"), comparison_sheet(prediction, gt, row)[..., ::-1])
         except Exception as error:  # noqa: BLE001 - one bad mesh must not stop a benchmark
             row["error"] = f"{type(error).__name__}: {error}".splitlines()[0]
             if progress and not isinstance(error, InputError):

@@ -8,7 +8,8 @@ import trimesh
 
 from frontal3d.baseline import slab_from_mask, slab_reconstructor
 from frontal3d.errors import InputError
-from frontal3d.evaluate import chamfer_f, evaluate_pair, normalize, run_evaluation, voxel_iou
+from frontal3d.evaluate import (PREDICTION_COLOUR, SHEET_VIEW, TRUTH_COLOUR, chamfer_f, comparison_sheet, evaluate_pair, normalize,
+                                run_evaluation, voxel_iou)
 
 
 def _box(x: float, y: float, z: float) -> trimesh.Trimesh:
@@ -107,9 +108,10 @@ def test_run_evaluation_writes_tables_and_plot(tmp_path):
     _box(1.0, 0.5, 0.3).export(meshes / "a_box.glb")
     trimesh.creation.cylinder(radius=0.4, height=0.2).export(meshes / "b_disc.glb")
     out = tmp_path / "out"
-    rows = run_evaluation("thing", meshes, None, slab_reconstructor(0.3), out, progress=False)
+    rows = run_evaluation("thing", meshes, None, slab_reconstructor(0.3), out, progress=False, sheets=True)
 
     assert [r["id"] for r in rows] == ["a_box", "b_disc"]
+    assert sorted(p.name for p in (out / "sheets").iterdir()) == ["a_box.png", "b_disc.png"]
     assert all(not r["error"] for r in rows)
     box_row = rows[0]
     assert box_row["iou"] > 0.9 and box_row["fscore"] > 0.5
@@ -152,3 +154,19 @@ def test_icp_point_metrics_forgive_a_wrong_fin_height():
     assert metrics["chamfer_l1_icp"] < metrics["chamfer_l1"]
     same = evaluate_pair(_plate_with_fin(0.2), _plate_with_fin(0.2))
     assert same["fscore_icp"] == pytest.approx(same["fscore"])
+
+
+def test_the_comparison_sheet_shows_where_the_plate_sits_against_the_box_centre():
+    """``evaluate -v``: a fin of another height moves the plate against the box centre (the
+    strict reading's loss above); seen from the side the two plates stand apart. Identical
+    meshes draw every point on each other."""
+    def only(sheet: np.ndarray, colour: tuple[int, int, int]) -> np.ndarray:
+        return np.all(sheet == colour, axis=2)
+
+    same = comparison_sheet(_plate_with_fin(0.2), _plate_with_fin(0.2), {})
+    assert not only(same, TRUTH_COLOUR).any() and not only(same, PREDICTION_COLOUR).any()
+    side = comparison_sheet(_plate_with_fin(0.3), _plate_with_fin(0.1), {"fscore": 0.1})[:, SHEET_VIEW : 2 * SHEET_VIEW]
+    truth_columns = np.nonzero(only(side, TRUTH_COLOUR))[1]
+    prediction_columns = np.nonzero(only(side, PREDICTION_COLOUR))[1]
+    # 0.1 of the side apart is one point-metric unit, 0.9 * SHEET_VIEW / 10 pixels.
+    assert abs(np.median(truth_columns) - np.median(prediction_columns)) > 0.05 * SHEET_VIEW
