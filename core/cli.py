@@ -184,6 +184,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--limit", type=int, help="only the first N meshes")
     _add_set_option(p, "turned_margin=1")
     p.add_argument("-o", "--out", type=Path, default=Path("frontal3d-gate"), help="output folder (default: ./frontal3d-gate)")
+    p.add_argument("-v", "--verbose", action="store_true", help="with --meshes, also picture the views judged the wrong way "
+                   "(turned ones accepted, front ones turned down) in OUT/misjudged.png")
     p.set_defaults(run=_cmd_evaluate_gate)
 
     p = sub.add_parser("evaluate-regions", help="measure the inner-region segmentation on synthetic samples", description="Reconstruct each frontal sample of a `frontal3d synth` folder with its true mask and subtype, and compare the region map on the working grid with the sample's true one: mean IoU per sample and per region (pooled), for the aligned template's transferred map and for the pipeline's refined map (the learned region model's, with --set 'weights={regions=\"CKPT\"}'). Writes OUT/regions.csv and OUT/summary.txt.")
@@ -449,9 +451,10 @@ def _cmd_evaluate_gate(args: argparse.Namespace) -> int:
     meshes = len(sorted(args.meshes.glob("*.glb"))[: args.limit])
     with counter(meshes, "mesh") as bar:
         _, summary = evaluate_gate(plugins, args.family, args.meshes, args.out, angles, args.resolution, args.limit,
-                                   _parse_sets(args.set), args.renders, args.subtype, progress=bar.update, labels=labels)
+                                   _parse_sets(args.set), args.renders, args.subtype, progress=bar.update, labels=labels,
+                                   sheet=args.verbose)
     print("\n".join(summary.lines()))
-    print(f"wrote {args.out}/gate.csv, summary.txt")
+    print(f"wrote {args.out}/gate.csv, summary.txt" + (", misjudged.png" if args.verbose else ""))
     return 0
 
 

@@ -24,6 +24,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import cv2
 import numpy as np
 import trimesh
 
@@ -101,7 +102,7 @@ def evaluate_gate(plugins: Plugins, family: str, meshes_dir: Path, out_dir: Path
                   angles: Iterable[float] = DEFAULT_ANGLES, resolution: int = DEFAULT_RESOLUTION,
                   limit: int | None = None, settings: dict | None = None, renders_dir: Path | None = None,
                   subtype: str | None = None, progress: Callable[[int], None] | None = None,
-                  labels: dict[str, str] | None = None) -> tuple[list[dict], GateSummary]:
+                  labels: dict[str, str] | None = None, sheet: bool = False) -> tuple[list[dict], GateSummary]:
     """Judge every ``*.glb`` of ``meshes_dir`` turned by each angle; writes ``gate.csv`` into ``out_dir`` when given.
 
     With ``renders_dir`` (``<id>.png``, ``<id>_mask.png``, ``<id>.json``, as in the shared data), each
@@ -109,7 +110,8 @@ def evaluate_gate(plugins: Plugins, family: str, meshes_dir: Path, out_dir: Path
     apart from the rendered turns): the cost of a stricter gate on other renderings.
     ``subtype`` judges against that subtype's template only (as ``reconstruct --subtype``).
     ``labels`` (mesh id -> true subtype, :func:`read_subtype_labels`) scores the subtype
-    picked on the accepted 0° views and given renders.
+    picked on the accepted 0° views and given renders. With ``sheet`` (and ``out_dir``), the
+    views judged the wrong way are pictured in ``misjudged.png`` (:func:`misjudged_sheet`).
     """
     fam = plugins.family(family)
     paths = sorted(Path(meshes_dir).glob("*.glb"))[:limit]
@@ -117,24 +119,66 @@ def evaluate_gate(plugins: Plugins, family: str, meshes_dir: Path, out_dir: Path
         raise InputError(f"no *.glb meshes in {meshes_dir}")
     fam_settings = plugins.settings(fam.name, settings or {})
     labels = labels or {}
-    rows = []
+    rows, wrong_views = [], []
+
+    def judge(image: np.ndarray, mask: np.ndarray, view: dict) -> None:
+        row = _judged(plugins, fam, fam_settings, subtype, image, mask) | view
+        rows.append(row)
+        if sheet and misjudged(row):
+            wrong_views.append((image, row))
+
     for path in paths:
         mesh = load_coloured_mesh(path)
         for axis, degrees in views(angles):
             image, mask, _ = render_frontal(turned(mesh, axis, degrees), resolution)
             true_subtype = labels.get(path.stem, "") if degrees == 0 else ""
-            rows.append(_judged(plugins, fam, fam_settings, subtype, image, mask)
-                        | {"id": path.stem, "axis": axis, "degrees": degrees, "true_subtype": true_subtype})
+            judge(image, mask, {"id": path.stem, "axis": axis, "degrees": degrees, "true_subtype": true_subtype})
         if renders_dir is not None:
             image, mask, _ = load_render(Path(renders_dir), path.stem)
-            rows.append(_judged(plugins, fam, fam_settings, subtype, image, mask)
-                        | {"id": path.stem, "axis": "render", "degrees": 0.0, "true_subtype": labels.get(path.stem, "")})
+            judge(image, mask, {"id": path.stem, "axis": "render", "degrees": 0.0, "true_subtype": labels.get(path.stem, "")})
         if progress:
             progress(1)
     summary = summarize(rows)
     if out_dir is not None:
         _write(Path(out_dir), rows, CSV_FIELDS, summary.lines())
+        if sheet:
+            cv2.imwrite(str(Path(out_dir) / "misjudged.png"), misjudged_sheet(wrong_views)[..., ::-1])
     return rows, summary
+
+
+def misjudged(row: dict) -> bool:
+    """Whether the gate judged this view the wrong way: a view within FRONTAL_LIMIT_DEG (or a given
+    render) turned down, or one turned TURNED_FROM_DEG or more accepted. Views in between never are."""
+    turn = abs(float(row["degrees"]))
+    if row["axis"] == "render" or turn <= FRONTAL_LIMIT_DEG:
+        return not row["accepted"]
+    return bool(row["accepted"]) and turn >= TURNED_FROM_DEG
+
+
+#: Thumbnail side and thumbnails per row of :func:`misjudged_sheet`.
+SHEET_THUMB = 192
+SHEET_COLUMNS = 6
+
+
+def misjudged_sheet(views: list[tuple[np.ndarray, dict]]) -> np.ndarray:
+    """RGB contact sheet of the views the gate judged the wrong way, each captioned with the
+    mesh, the turn and the verdict (a turned view accepted, with its agreement; a front view
+    turned down): which shapes fool the gate, at a glance. A one-line note when there are none."""
+    if not views:
+        blank = np.full((40, 4 * SHEET_THUMB, 3), 255, np.uint8)
+        cv2.putText(blank, "no view judged the wrong way", (8, 26), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 1, cv2.LINE_AA)
+        return blank
+    tiles = []
+    for image, row in views:
+        tile = np.full((SHEET_THUMB + 36, SHEET_THUMB, 3), 255, np.uint8)
+        tile[:SHEET_THUMB] = cv2.resize(np.ascontiguousarray(image[..., :3]), (SHEET_THUMB, SHEET_THUMB), interpolation=cv2.INTER_AREA)
+        verdict = f"accepted {row['confidence']}" if row["accepted"] else "turned down"
+        turn = "render" if row["axis"] == "render" else f"{row['axis']} {float(row['degrees']):+.0f}"
+        for line, text in enumerate((str(row["id"])[:28], f"{turn}: {verdict}")):
+            cv2.putText(tile, text, (4, SHEET_THUMB + 14 + 16 * line), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1, cv2.LINE_AA)
+        tiles.append(tile)
+    tiles += [np.full_like(tiles[0], 255)] * (-len(tiles) % SHEET_COLUMNS)
+    return np.concatenate([np.concatenate(tiles[k : k + SHEET_COLUMNS], axis=1) for k in range(0, len(tiles), SHEET_COLUMNS)], axis=0)
 
 
 @dataclass(frozen=True)

@@ -6,12 +6,14 @@ import csv
 import json
 
 import cv2
+import numpy as np
 import pytest
 import trimesh
 
 from frontal3d.cli import main
 from frontal3d.errors import InputError
-from frontal3d.eval_gate import evaluate_gate, read_subtype_labels, subtype_score, summarize, views
+from frontal3d.eval_gate import (SHEET_COLUMNS, SHEET_THUMB, evaluate_gate, misjudged, misjudged_sheet, read_subtype_labels, subtype_score,
+                                 summarize, views)
 from frontal3d.evaluate import render_frontal
 from frontal3d.plugins import Plugins
 from shapes import box_car
@@ -58,6 +60,30 @@ def test_side_view_accepted_and_end_on_views_rejected_with_reasons(meshes, tmp_p
     assert len(written) == 6
     assert {row["true_subtype"] for row in written if row["degrees"] == "0.0"} == {"suv"}
     assert {row["true_subtype"] for row in written if row["degrees"] != "0.0"} == {""}
+
+
+def test_misjudged_views_are_front_views_turned_down_and_turned_views_accepted():
+    def row(axis: str, degrees: float, accepted: int) -> dict:
+        return {"id": "m", "axis": axis, "degrees": degrees, "accepted": accepted, "confidence": 0.5}
+
+    assert misjudged(row("render", 0.0, 0)) and misjudged(row("yaw", -10.0, 0)) and misjudged(row("pitch", 30.0, 1))
+    assert not misjudged(row("yaw", 0.0, 1)) and not misjudged(row("yaw", 45.0, 0))
+    assert not misjudged(row("yaw", 20.0, 1)) and not misjudged(row("yaw", 20.0, 0))  # between the two: nothing expected
+    image = np.zeros((100, 100, 3), np.uint8)
+    sheet = misjudged_sheet([(image, row("yaw", 30.0, 1))] * (SHEET_COLUMNS + 1))
+    assert sheet.shape[1] == SHEET_COLUMNS * SHEET_THUMB and sheet.shape[0] == 2 * (SHEET_THUMB + 36)  # two rows, the last padded
+    assert misjudged_sheet([]).shape[0] < SHEET_THUMB  # a one-line note
+
+
+def test_verbose_gate_run_pictures_its_misjudged_views(meshes, tmp_path):
+    # The sheet holds exactly the views gate.csv shows judged the wrong way (a note when there are none).
+    assert main(["evaluate-gate", "--family", "car", "--meshes", str(meshes), "--angles", "0,90", "--resolution", "128",
+                 "-o", str(tmp_path), "-v"]) == 0
+    sheet = cv2.imread(str(tmp_path / "misjudged.png"))
+    with (tmp_path / "gate.csv").open() as handle:
+        wrong = [r for r in csv.DictReader(handle) if misjudged({**r, "accepted": int(r["accepted"])})]
+    rows = -(-len(wrong) // SHEET_COLUMNS)
+    assert sheet.shape[0] == (rows * (SHEET_THUMB + 36) if wrong else misjudged_sheet([]).shape[0])
 
 
 def test_subtype_score_counts_accepted_labelled_views_only():
