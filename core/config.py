@@ -40,6 +40,7 @@ CORE_FAMILY_SETTINGS: dict[str, Any] = {
     "neck_wall_margin": 1.0,  # frontal gate: reject when the neck's offset from the body's midline and the left-right side-wall gap agree on one turn about the neck and average more than this share of their own margins (parallax_margin, rim_margin); 1 = off
     "neckless_margin": 1.0,  # frontal gate: reject when across more than this share of the placed template's lower-neck rows the outline shows no neck (nothing, or over 1.5 necks wide): its body fits, but nothing there is a neck; 1 = off
     "fill_holes": True,  # fill the small holes the core segmenters leave where the placed template is solid (a chrome hub taken for a white backdrop)
+    "max_rebuilt_share": 0.5,  # refuse a reconstruction whose front would be rebuilt from the template over more than this share, behind detected people or occluders (not the user's --occluder-mask); 1 = off
     "outline_mirror": False,  # rebuild a hidden outline (and judge people in front) by the object's mirror image where that is seen and fits better than the template
     "depth_scale": "global",  # local, smooth, global or length (the object's length): how depth follows the warp
     "smooth_iterations": 10,  # Laplacian smoothing passes of the mesh

@@ -416,6 +416,24 @@ def test_a_real_person_in_front_of_a_guitar_is_found_and_left_out_of_the_texture
 
 
 @needs_mediapipe
+def test_a_scrap_the_detectors_surround_is_not_rebuilt_into_a_whole_object():
+    """skimage's close-up of a cat (public domain): the car segmenter finds its two eyes, the
+    person segmenter alone takes the cat for a person, and the car template placed across the
+    eyes had everything between them "in front": an SUV rebuilt over 62 % of its front, the
+    frontal gate 0.99 sure. Most of such a model would be the template's, so it is refused;
+    the real person in front of a guitar above keeps its reconstruction."""
+    import skimage
+
+    from frontal3d.errors import NotFrontalError
+
+    cat = skimage.data.chelsea()
+    with pytest.raises(NotFrontalError, match=r"the car is mostly hidden: \d+% of its front would be the template's"):
+        frontal3d.reconstruct(cat, "car")
+    anyway = frontal3d.reconstruct(cat, "car", max_rebuilt_share=1.0)
+    assert anyway.report["occlusion"]["occluded_fraction"] > 0.5
+
+
+@needs_mediapipe
 def test_a_face_is_found_with_the_head_around_it_and_a_guitar_is_no_face():
     """The astronaut's face (skimage's portrait, public domain; the face lies at about x 165-265,
     y 40-200 of the 512 px photo) with her hair and chin, not her suit; a drawn guitar has no face."""
