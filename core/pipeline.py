@@ -257,19 +257,17 @@ def _reconstruct_objects(image: np.ndarray | str | Path, family: str | None, mas
         candidate.report.data["family"] = fam.name
         candidate.report.data["subtype"] = candidate.subtype
         candidate.report.data["decisions"] = [d.to_dict() for d in candidate.decisions]
-        result = _reconstruct_shape_and_texture(
+        results.append(_reconstruct_shape_and_texture(
             plugins, rgb, candidate.object_mask, candidate.probable, candidate.occluders, candidate.people_near, fam,
             candidate.subtype, fam_settings, candidate.renders_by_subtype[candidate.subtype], candidate.report, progress,
-            candidate.context)
-        if user_occluders is None:
-            _refuse_mostly_rebuilt(result, fam, fam_settings, candidate.object_mask)
-        results.append(result)
+            candidate.context, occluders_given=user_occluders is not None))
     return results
 
 
-def _refuse_mostly_rebuilt(result: Reconstruction, fam: Family, settings: dict[str, Any], object_mask: np.ndarray) -> None:
-    """Raise :class:`NotFrontalError` when most of the object's front would be the template's,
-    rebuilt behind people or occluders the detectors found (``max_rebuilt_share``).
+def _refuse_mostly_rebuilt(share: float, fam: Family, settings: dict[str, Any], object_mask: np.ndarray) -> None:
+    """Raise :class:`NotFrontalError` when ``share`` (the occlusion stage's ``occluded_fraction``)
+    says most of the object's front would be the template's, rebuilt behind people or occluders
+    the detectors found (``max_rebuilt_share``).
 
     The occlusion stage trusts the detectors: behind a person in front, the outline is the
     template's. When what the segmenter found is a scrap of the photo (a cat's eyes, the
@@ -278,7 +276,6 @@ def _refuse_mostly_rebuilt(result: Reconstruction, fam: Family, settings: dict[s
     out that the photo does not show. The issue's occluders hide 10-30 % of the object; the
     people benchmark's detections reach 0.48 of the rebuilt silhouette (seeds 0-2), such scraps 0.6-0.8.
     """
-    share = float(result.report["occlusion"]["occluded_fraction"])
     limit = float(settings["max_rebuilt_share"])
     if share > limit:
         raise NotFrontalError(
@@ -372,7 +369,10 @@ def _reconstruct_shape_and_texture(
     report: Report,
     progress: Callable[[str], None] | None,
     context: classify.ClassifierContext,
+    occluders_given: bool,
 ) -> Reconstruction:
+    """The shape and texture stages for one accepted object. ``occluders_given``: the user gave
+    the occluders (``--occluder-mask``), whose word is taken however much they hide."""
     maps: dict[str, np.ndarray] = {}
     # The crop also covers occluders touching the object: the rebuilt outline lies under them.
     crop = _crop_for(object_mask | _touching(occluders, object_mask) | (people_near & _around(object_mask)), int(settings["working_resolution"]))
@@ -412,11 +412,14 @@ def _reconstruct_shape_and_texture(
             work_people = _to_working(people_near.astype(np.uint8), crop, cv2.INTER_NEAREST) > 0
             work_occluders |= occlusion.in_front(work_people, work_mask, aligned_template_mask, mirror_axis)
         rebuilt = occlusion.rebuild_silhouette(work_mask, work_occluders, aligned_template_mask, k=k, mirror_axis=mirror_axis)
-        seen_mask, pictured = work_mask, work_occluders.any() or people_near.any()
+        seen_mask = work_mask
+        pictured = work_occluders.any() or people_near.any()
         if pictured:
             maps.update(seen_object_mask=seen_mask, people=work_people, occluders=work_occluders)
         work_mask, occluded = rebuilt.mask, rebuilt.occluded
         report.data["occlusion"] = rebuilt.summary()
+        if not occluders_given:
+            _refuse_mostly_rebuilt(report.data["occlusion"]["occluded_fraction"], fam, settings, object_mask)
         if settings["fill_holes"] and _found_by_segmenters(report):
             work_mask, filled = _template_holes_filled(work_mask, aligned_template_mask)
             if filled:
