@@ -261,11 +261,11 @@ def comparison_sheet(pred: trimesh.Trimesh, gt: trimesh.Trimesh, metrics: dict[s
     for label, right, up in SHEET_VIEWS:
         drawn = []
         for points in clouds:
-            image = np.zeros((SHEET_VIEW, SHEET_VIEW), np.uint8)
+            hit = np.zeros((SHEET_VIEW, SHEET_VIEW), bool)
             cols = np.clip(np.round(SHEET_VIEW / 2 + points[:, right] * pixels_per_unit), 0, SHEET_VIEW - 1).astype(int)
             rows = np.clip(np.round(SHEET_VIEW / 2 - points[:, up] * pixels_per_unit), 0, SHEET_VIEW - 1).astype(int)
-            image[rows, cols] = 1
-            drawn.append(image > 0)
+            hit[rows, cols] = True
+            drawn.append(hit)
         truth, prediction = drawn
         panel = np.zeros((SHEET_VIEW, SHEET_VIEW, 3), np.uint8)
         panel[truth] = TRUTH_COLOUR
